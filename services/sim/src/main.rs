@@ -1,0 +1,27 @@
+//! `sim`: the simulator binary. Each subcommand lives in its own module under `cmd/`.
+
+mod cmd;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "sim",
+    about = "Closed-loop simulator: scenario -> stereo frames, INS, ground truth"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render one frame of a scenario to PNG files (offline, no IPC).
+    Render(cmd::render::Args),
+}
+
+fn main() -> anyhow::Result<()> {
+    match Cli::parse().command {
+        Command::Render(args) => cmd::render::run(args),
+    }
+}
