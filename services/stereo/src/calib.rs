@@ -154,7 +154,8 @@ pub struct RectifiedCamera {
 }
 
 impl Intrinsics {
-    fn distort(&self, x: f64, y: f64) -> (f64, f64) {
+    /// Normalized undistorted coordinates to normalized distorted ones.
+    pub fn distort(&self, x: f64, y: f64) -> (f64, f64) {
         let r2 = x * x + y * y;
         let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
         (
@@ -164,7 +165,7 @@ impl Intrinsics {
     }
 
     /// Pixel to normalized undistorted coordinates (fixed-point iteration, as OpenCV).
-    fn undistort_pixel(&self, u: f64, v: f64) -> (f64, f64) {
+    pub fn undistort_pixel(&self, u: f64, v: f64) -> (f64, f64) {
         let (xd, yd) = ((u - self.cx) / self.fx, (v - self.cy) / self.fy);
         let (mut x, mut y) = (xd, yd);
         for _ in 0..20 {
