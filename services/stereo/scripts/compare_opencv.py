@@ -1,0 +1,127 @@
+#!/usr/bin/env python3
+"""Side-by-side accuracy and speed of our `stereo match` (BM, SGM) and OpenCV StereoBM / StereoSGBM
+(MODE_SGBM_3WAY), in one run on the same inputs.
+
+Accuracy: Middlebury Motorcycle (testdata/), 96 disparities; density and bad-pixel rates (>1 px,
+>2 px) over all ground-truth pixels (missing counts as bad) and over produced pixels.
+Speed: the same pair resized to 1280x960, 128 disparities, median of --repeat runs each.
+
+Usage: scripts/compare_opencv.py [--bin PATH] [--repeat N]
+(build first: cargo build --release -p stereo)
+"""
+import argparse
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+try:
+    import cv2
+    import numpy as np
+except ImportError:
+    subprocess.check_call([sys.executable, "-m", "pip", "install", "-q",
+                           "opencv-python-headless", "numpy"])
+    import cv2
+    import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DATA = os.path.join(HERE, "..", "testdata")
+ACC_NDISP, SPEED_NDISP, SPEED_SIZE = 96, 128, (1280, 960)
+
+
+def default_bin():
+    target = os.environ.get("CARGO_TARGET_DIR", os.path.join(HERE, "..", "..", "..", "target"))
+    return os.path.join(target, "release", "stereo")
+
+
+def metrics(disp, valid, gt):
+    known = np.isfinite(gt)
+    n = known.sum()
+    v = valid & known
+    err = np.abs(np.where(v, disp, 0) - np.where(known, gt, 0))
+    missing = (known & ~valid).sum()
+    return dict(
+        density=v.sum() / n,
+        bad1_all=(((err > 1) & v).sum() + missing) / n,
+        bad2_all=(((err > 2) & v).sum() + missing) / n,
+        bad1_valid=((err > 1) & v).sum() / max(v.sum(), 1),
+        bad2_valid=((err > 2) & v).sum() / max(v.sum(), 1),
+    )
+
+
+def opencv_matchers(ndisp):
+    # Same checks as ours where OpenCV has them: 9x9 window, texture 10, uniqueness 10,
+    # left-right max diff 1 (BM); 5x5 blocks, uniqueness 5, LR 1 (SGBM); no speckle filter.
+    bm = cv2.StereoBM_create(numDisparities=ndisp, blockSize=9)
+    bm.setPreFilterCap(31)
+    bm.setTextureThreshold(10)
+    bm.setUniquenessRatio(10)
+    bm.setDisp12MaxDiff(1)
+    bs = 5
+    sg = cv2.StereoSGBM_create(minDisparity=0, numDisparities=ndisp, blockSize=bs,
+                               P1=8 * bs * bs, P2=32 * bs * bs, disp12MaxDiff=1,
+                               uniquenessRatio=5, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
+    return {"opencv StereoBM": bm, "opencv SGBM-3WAY": sg}
+
+
+def run_opencv(m, left, right, repeat):
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        d = m.compute(left, right)
+        times.append(time.perf_counter() - t)
+    return d.astype(np.float32) / 16.0, d >= 0, 1e3 * float(np.median(times))
+
+
+def run_ours(binary, algo, left_path, right_path, ndisp, repeat, tmp):
+    out = os.path.join(tmp, f"ours_{algo}.png")
+    res = subprocess.run([binary, "match", "--left", left_path, "--right", right_path,
+                          "--ndisp", str(ndisp), "--algo", algo, "--out", out,
+                          "--repeat", str(repeat)], check=True, capture_output=True, text=True)
+    ms = float(re.search(r"median matching time ([0-9.]+) ms", res.stdout).group(1))
+    d = cv2.imread(out, cv2.IMREAD_UNCHANGED).astype(np.float32)
+    return d / 256.0, d > 0, ms
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bin", default=default_bin())
+    ap.add_argument("--repeat", type=int, default=20)
+    a = ap.parse_args()
+    lp, rp = os.path.join(DATA, "motorcycle_left.png"), os.path.join(DATA, "motorcycle_right.png")
+    gt = np.load(os.path.join(DATA, "motorcycle_disp.npz"))["arr_0"]
+    left, right = cv2.imread(lp, cv2.IMREAD_GRAYSCALE), cv2.imread(rp, cv2.IMREAD_GRAYSCALE)
+    print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads; our binary {a.bin}")
+    with tempfile.TemporaryDirectory() as tmp:
+        big_l, big_r = os.path.join(tmp, "l.png"), os.path.join(tmp, "r.png")
+        bl = cv2.resize(left, SPEED_SIZE, interpolation=cv2.INTER_CUBIC)
+        br = cv2.resize(right, SPEED_SIZE, interpolation=cv2.INTER_CUBIC)
+        cv2.imwrite(big_l, bl)
+        cv2.imwrite(big_r, br)
+        rows = {}
+        acc_cv, speed_cv = opencv_matchers(ACC_NDISP), opencv_matchers(SPEED_NDISP)
+        for name in acc_cv:
+            d, v, _ = run_opencv(acc_cv[name], left, right, 1)
+            _, _, ms = run_opencv(speed_cv[name], bl, br, a.repeat)
+            rows[name] = (metrics(d, v, gt), ms)
+        for algo in ("bm", "sgm"):
+            d, v, _ = run_ours(a.bin, algo, lp, rp, ACC_NDISP, 1, tmp)
+            _, _, ms = run_ours(a.bin, algo, big_l, big_r, SPEED_NDISP, a.repeat, tmp)
+            rows[f"ours {algo}"] = (metrics(d, v, gt), ms)
+    ref = {"ours bm": "opencv StereoBM", "ours sgm": "opencv SGBM-3WAY"}
+    print(f"\nAccuracy: Motorcycle 741x500, {ACC_NDISP} disparities. "
+          f"Speed: {SPEED_SIZE[0]}x{SPEED_SIZE[1]}, {SPEED_NDISP} disparities, "
+          f"median of {a.repeat} runs.")
+    print(f"{'method':18} {'density':>8} {'bad1 all':>9} {'bad1 val':>9} {'bad2 all':>9} "
+          f"{'bad2 val':>9} {'ms':>8} {'fps':>6} {'speedup':>8}")
+    for name, (m, ms) in rows.items():
+        speed = f"{rows[ref[name]][1] / ms:7.2f}x" if name in ref else ""
+        print(f"{name:18} {100*m['density']:7.1f}% {100*m['bad1_all']:8.1f}% "
+              f"{100*m['bad1_valid']:8.1f}% {100*m['bad2_all']:8.1f}% {100*m['bad2_valid']:8.1f}% "
+              f"{ms:8.1f} {1e3/ms:6.1f} {speed:>8}")
+
+
+if __name__ == "__main__":
+    main()
