@@ -62,11 +62,14 @@ impl BmParams {
         check_ndisp(self.num_disparities)?;
         let bs = self.block_size;
         let bad = |m: String| Err(MatchError::InvalidParams(m));
-        if bs < 3 || bs % 2 == 0 {
+        if bs < 3 || bs.is_multiple_of(2) {
             return bad(format!("block_size = {bs}: must be odd and >= 3"));
         }
         if self.prefilter_cap == 0 || self.prefilter_cap > 63 {
-            return bad(format!("prefilter_cap = {}: must be in 1..=63", self.prefilter_cap));
+            return bad(format!(
+                "prefilter_cap = {}: must be in 1..=63",
+                self.prefilter_cap
+            ));
         }
         // Window sums are u16.
         if bs * bs * 2 * self.prefilter_cap as usize > u16::MAX as usize {
@@ -184,32 +187,29 @@ fn multiscale_filter(
         let b = (v / 2).min(n - 1);
         (a, b)
     };
-    out.data
-        .par_chunks_mut(w)
-        .enumerate()
-        .for_each(|(y, row)| {
-            let (ya, yb) = span(y, h2);
-            for (x, v) in row.iter_mut().enumerate() {
-                if *v < 0 {
-                    continue;
-                }
-                let (xa, xb) = span(x, w2);
-                let mut any_valid = false;
-                let mut ok = false;
-                for cy in [ya, yb] {
-                    for cx in [xa, xb] {
-                        let c = coarse[cy * w2 + cx];
-                        if c >= 0 {
-                            any_valid = true;
-                            ok |= (*v as i32 - 2 * c as i32).abs() <= tol;
-                        }
+    out.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let (ya, yb) = span(y, h2);
+        for (x, v) in row.iter_mut().enumerate() {
+            if *v < 0 {
+                continue;
+            }
+            let (xa, xb) = span(x, w2);
+            let mut any_valid = false;
+            let mut ok = false;
+            for cy in [ya, yb] {
+                for cx in [xa, xb] {
+                    let c = coarse[cy * w2 + cx];
+                    if c >= 0 {
+                        any_valid = true;
+                        ok |= (*v as i32 - 2 * c as i32).abs() <= tol;
                     }
                 }
-                if !(ok || (!any_valid && keep_unmatched)) {
-                    *v = INVALID;
-                }
             }
-        });
+            if !(ok || (!any_valid && keep_unmatched)) {
+                *v = INVALID;
+            }
+        }
+    });
 }
 
 /// One pyramid level: prefiltered inputs and per-band scratch, sized once.
@@ -271,16 +271,21 @@ impl Level {
             .par_chunks_mut(w)
             .enumerate()
             .for_each(|(y, row)| prefilter_row(left, w, h, y, cap, row));
-        self.rp
-            .par_chunks_mut(rs)
-            .enumerate()
-            .for_each(|(y, row)| {
-                let (img, pad) = row.split_at_mut(w);
-                prefilter_row(right, w, h, y, cap, img);
-                img.reverse();
-                pad.fill(cap);
-            });
-        texture_sums(&self.lp, w, h, p.block_size / 2, cap, &mut self.tex, &mut self.tex_col);
+        self.rp.par_chunks_mut(rs).enumerate().for_each(|(y, row)| {
+            let (img, pad) = row.split_at_mut(w);
+            prefilter_row(right, w, h, y, cap, img);
+            img.reverse();
+            pad.fill(cap);
+        });
+        texture_sums(
+            &self.lp,
+            w,
+            h,
+            p.block_size / 2,
+            cap,
+            &mut self.tex,
+            &mut self.tex_col,
+        );
 
         let band_rows = h.div_ceil(BANDS);
         let input = LevelInput {
@@ -313,14 +318,33 @@ fn prefilter_row(img: &[u8], w: usize, h: usize, y: usize, cap: u8, out: &mut [u
         (d.clamp(-cap, cap) + cap) as u8
     };
     out[0] = f(r0[0], r0[1], r1[0], r1[1], r2[0], r2[1]);
-    out[w - 1] = f(r0[w - 2], r0[w - 1], r1[w - 2], r1[w - 1], r2[w - 2], r2[w - 1]);
-    let it = r0.iter().zip(&r0[2..]).zip(r1.iter().zip(&r1[2..])).zip(r2.iter().zip(&r2[2..]));
+    out[w - 1] = f(
+        r0[w - 2],
+        r0[w - 1],
+        r1[w - 2],
+        r1[w - 1],
+        r2[w - 2],
+        r2[w - 1],
+    );
+    let it = r0
+        .iter()
+        .zip(&r0[2..])
+        .zip(r1.iter().zip(&r1[2..]))
+        .zip(r2.iter().zip(&r2[2..]));
     for (o, (((&a0, &a2), (&b0, &b2)), (&c0, &c2))) in out[1..w - 1].iter_mut().zip(it) {
         *o = f(a0, a2, b0, b2, c0, c2);
     }
 }
 
-fn texture_sums(lp: &[u8], w: usize, h: usize, r: usize, cap: u8, tex: &mut [u16], col: &mut [u16]) {
+fn texture_sums(
+    lp: &[u8],
+    w: usize,
+    h: usize,
+    r: usize,
+    cap: u8,
+    tex: &mut [u16],
+    col: &mut [u16],
+) {
     let t = |v: u8| (v as i16 - cap as i16).unsigned_abs();
     col.fill(0);
     tex.fill(0);
@@ -385,11 +409,33 @@ fn match_band_impl(inp: &LevelInput<'_>, p: &BmParams, y0: usize, out: &mut [i16
     }
     for y in ys..ye {
         if y > ys {
-            col_update(col, lrow(y + r), rrow(y + r), lrow(y - r - 1), rrow(y - r - 1), nd);
+            col_update(
+                col,
+                lrow(y + r),
+                rrow(y + r),
+                lrow(y - r - 1),
+                rrow(y - r - 1),
+                nd,
+            );
         }
         let orow = &mut out[(y - y0) * w..(y - y0 + 1) * w];
-        let scratch = (&mut sad[..], &mut tmp[..], &mut mr[..], &mut md[..], &mut best[..]);
-        match_row(col, &inp.tex[y * w..(y + 1) * w], p, w, nd, r, orow, scratch);
+        let scratch = (
+            &mut sad[..],
+            &mut tmp[..],
+            &mut mr[..],
+            &mut md[..],
+            &mut best[..],
+        );
+        match_row(
+            col,
+            &inp.tex[y * w..(y + 1) * w],
+            p,
+            w,
+            nd,
+            r,
+            orow,
+            scratch,
+        );
     }
 }
 

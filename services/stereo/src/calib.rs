@@ -98,7 +98,10 @@ impl Calibration {
     pub fn validate(&self) -> Result<(), CalibError> {
         let bad = |field, reason: String| Err(CalibError::Invalid { field, reason });
         if self.width < 8 || self.height < 8 {
-            return bad("width", format!("{}x{} is too small", self.width, self.height));
+            return bad(
+                "width",
+                format!("{}x{} is too small", self.width, self.height),
+            );
         }
         for (name, k) in [("left", &self.left), ("right", &self.right)] {
             let vals = [k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2, k.k3];
@@ -106,7 +109,10 @@ impl Calibration {
                 return bad(field_name(name, "intrinsics"), "not finite".into());
             }
             if k.fx <= 0.0 || k.fy <= 0.0 {
-                return bad(field_name(name, "fx"), format!("focal {} {} must be > 0", k.fx, k.fy));
+                return bad(
+                    field_name(name, "fx"),
+                    format!("focal {} {} must be > 0", k.fx, k.fy),
+                );
             }
         }
         let r = self.rotation_matrix();
@@ -115,7 +121,7 @@ impl Calibration {
             return bad("rotation", "not a proper rotation matrix".into());
         }
         let t = Vector3::from(self.translation);
-        if !(t.norm() > 1e-9) {
+        if t.norm() <= 1e-9 || !t.norm().is_finite() {
             return bad("translation", "baseline must be non-zero".into());
         }
         if !(self.oversize >= 0.5 && self.oversize <= 3.0) {
@@ -285,7 +291,11 @@ impl Rectifier {
         self.rect_from_left
     }
 
-    pub fn rectify_left_into(&self, src: GrayView<'_>, dst: &mut GrayImage) -> Result<(), RectifyError> {
+    pub fn rectify_left_into(
+        &self,
+        src: GrayView<'_>,
+        dst: &mut GrayImage,
+    ) -> Result<(), RectifyError> {
         self.apply(&self.left, "left", src, dst)
     }
 

@@ -106,7 +106,7 @@ pub(crate) fn check_size(
 }
 
 pub(crate) fn check_ndisp(n: usize) -> Result<(), MatchError> {
-    if n == 0 || n % 16 != 0 || n > 256 {
+    if n == 0 || !n.is_multiple_of(16) || n > 256 {
         return Err(MatchError::InvalidParams(format!(
             "num_disparities = {n}: must be a multiple of 16 in 16..=256"
         )));
@@ -129,7 +129,7 @@ pub(crate) fn argmin_lr(
     md: &mut [u16],
 ) -> (usize, u16) {
     let n = costs.len();
-    assert!(n % LANES == 0 && mr.len() >= n && md.len() >= n);
+    assert!(n.is_multiple_of(LANES) && mr.len() >= n && md.len() >= n);
     if let Some((a, s)) = slide {
         assert!(a.len() >= n && s.len() >= n);
     }
@@ -144,7 +144,12 @@ pub(crate) fn argmin_lr(
         }
     }
     let mut best = (0usize, u16::MAX);
-    for (d, ((&v, r), m)) in costs.iter().zip(mr.iter_mut()).zip(md.iter_mut()).enumerate() {
+    for (d, ((&v, r), m)) in costs
+        .iter()
+        .zip(mr.iter_mut())
+        .zip(md.iter_mut())
+        .enumerate()
+    {
         if v < best.1 {
             best = (d, v);
         }
@@ -205,7 +210,7 @@ unsafe fn argmin_lr_avx2(
 #[inline(always)]
 pub(crate) fn second_min(costs: &[u16], dmax: usize, best: usize) -> u16 {
     #[cfg(target_arch = "x86_64")]
-    if crate::simd::has_avx2() && dmax + 1 == costs.len() && costs.len() % LANES == 0 {
+    if crate::simd::has_avx2() && dmax + 1 == costs.len() && costs.len().is_multiple_of(LANES) {
         // SAFETY: AVX2 is present; the loop reads whole vectors inside `costs`.
         return unsafe { second_min_avx2(costs, best) };
     }

@@ -92,7 +92,8 @@ pub(crate) fn downsample2(src: GrayView<'_>, dst: &mut [u8]) {
         let r0 = src.row(2 * y);
         let r1 = src.row(2 * y + 1);
         for (x, o) in drow.iter_mut().enumerate() {
-            let s = r0[2 * x] as u16 + r0[2 * x + 1] as u16 + r1[2 * x] as u16 + r1[2 * x + 1] as u16;
+            let s =
+                r0[2 * x] as u16 + r0[2 * x + 1] as u16 + r1[2 * x] as u16 + r1[2 * x + 1] as u16;
             *o = ((s + 2) >> 2) as u8;
         }
     }

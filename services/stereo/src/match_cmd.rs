@@ -44,6 +44,10 @@ pub struct MatchArgs {
     /// Matching window side (BM only, odd).
     #[arg(long)]
     block_size: Option<usize>,
+    /// Matcher parameters as TOML (`algo = "bm"` or `"sgm"` plus that matcher's fields);
+    /// overrides --algo and --block-size, --ndisp still applies.
+    #[arg(long)]
+    params: Option<PathBuf>,
     /// Output disparity (.png or .pfm).
     #[arg(long)]
     out: PathBuf,
@@ -79,7 +83,7 @@ pub fn run(a: MatchArgs) -> Result<()> {
             right.height
         );
     }
-    let config = match a.algo {
+    let mut config = match a.algo {
         Algo::Bm => MatcherConfig::Bm(BmParams {
             num_disparities: a.ndisp,
             block_size: a.block_size.unwrap_or(BmParams::default().block_size),
@@ -90,6 +94,15 @@ pub fn run(a: MatchArgs) -> Result<()> {
             ..Default::default()
         }),
     };
+    if let Some(path) = &a.params {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        config = toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        match &mut config {
+            MatcherConfig::Bm(p) => p.num_disparities = a.ndisp,
+            MatcherConfig::Sgm(p) => p.num_disparities = a.ndisp,
+        }
+    }
     let mut matcher = build_matcher(&config, left.width, left.height)?;
     let mut disp = DisparityMap::new(left.width, left.height);
     let mut times = Vec::with_capacity(a.repeat.max(1));
@@ -130,7 +143,13 @@ fn write_png16(path: &Path, disp: &DisparityMap) -> Result<()> {
     let px: Vec<u16> = disp
         .data
         .iter()
-        .map(|&v| if v < 0 { 0 } else { (v as i32 * k).clamp(1, 65535) as u16 })
+        .map(|&v| {
+            if v < 0 {
+                0
+            } else {
+                (v as i32 * k).clamp(1, 65535) as u16
+            }
+        })
         .collect();
     let buf = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(
         disp.width as u32,

@@ -214,9 +214,21 @@ mod tests {
         }
         let fit = PlaneFitter::new(PlaneParams::default()).fit(&pts).unwrap();
         assert!((fit.height - h).abs() < 0.02, "height {}", fit.height);
-        assert!((fit.roll - roll).abs() < 0.3f64.to_radians(), "roll {}", fit.roll);
-        assert!((fit.pitch - pitch).abs() < 0.3f64.to_radians(), "pitch {}", fit.pitch);
-        assert!(fit.inliers >= 650 && fit.inliers <= 760, "inliers {}", fit.inliers);
+        assert!(
+            (fit.roll - roll).abs() < 0.3f64.to_radians(),
+            "roll {}",
+            fit.roll
+        );
+        assert!(
+            (fit.pitch - pitch).abs() < 0.3f64.to_radians(),
+            "pitch {}",
+            fit.pitch
+        );
+        assert!(
+            fit.inliers >= 650 && fit.inliers <= 760,
+            "inliers {}",
+            fit.inliers
+        );
         let level = fit.level_from_camera() * fit.normal;
         assert!((level - Vector3::new(0.0, -1.0, 0.0)).norm() < 1e-9);
     }

@@ -9,11 +9,15 @@ use crate::disparity::DisparityMap;
 /// 3D point for pixel (u, v) with disparity `d` pixels; `None` for d <= 0 (at infinity).
 #[inline]
 pub fn point(cam: &RectifiedCamera, u: f64, v: f64, d: f64) -> Option<Vector3<f64>> {
-    if !(d > 0.0) {
+    if d.is_nan() || d <= 0.0 {
         return None;
     }
     let z = cam.f * cam.baseline / d;
-    Some(Vector3::new((u - cam.cx) * z / cam.f, (v - cam.cy) * z / cam.f, z))
+    Some(Vector3::new(
+        (u - cam.cx) * z / cam.f,
+        (v - cam.cy) * z / cam.f,
+        z,
+    ))
 }
 
 /// Range standard deviation for a disparity standard deviation: `Z^2 sigma_d / (f B)`.

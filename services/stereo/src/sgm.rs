@@ -95,7 +95,9 @@ impl SgmMatcher {
             )));
         }
         if width < 16 || height < 8 {
-            return Err(MatchError::InvalidParams(format!("image {width}x{height} is too small")));
+            return Err(MatchError::InvalidParams(format!(
+                "image {width}x{height} is too small"
+            )));
         }
         let nd = params.num_disparities;
         let st = nd + 2;
@@ -301,7 +303,14 @@ fn forward_row(s: &mut Band, w: usize, nd: usize, p: &SgmParams) {
         // overwritten in the previous iteration.
         save_cur.copy_from_slice(&s.tlbr[px.clone()]);
         let m = s.tlbr_min[x];
-        s.tlbr_min[x] = step(save_prev, diag_prev_min, cost, &mut s.tlbr[px.clone()], p1, p2);
+        s.tlbr_min[x] = step(
+            save_prev,
+            diag_prev_min,
+            cost,
+            &mut s.tlbr[px.clone()],
+            p1,
+            p2,
+        );
         diag_prev_min = m;
         std::mem::swap(save_prev, save_cur);
         // Top-right to bottom-left: x + 1 of the previous row is not overwritten yet.

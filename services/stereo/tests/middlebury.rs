@@ -11,7 +11,9 @@ use stereo::{DisparityMap, DisparityMatcher, GrayImage};
 const NDISP: usize = 96;
 
 fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("testdata")
+        .join(name)
 }
 
 fn gray(name: &str) -> GrayImage {
@@ -55,7 +57,10 @@ fn block_matching_accuracy() {
     };
     let e = run(&mut BlockMatcher::new(p, 741, 500).unwrap());
     assert!(e.density > DENSITY_BM, "{e:?}");
-    assert!(e.bad2_valid < BAD2_VALID_BM && e.bad1_valid < BAD1_VALID_BM, "{e:?}");
+    assert!(
+        e.bad2_valid < BAD2_VALID_BM && e.bad1_valid < BAD1_VALID_BM,
+        "{e:?}"
+    );
     assert!(e.bad2_all < BAD2_ALL_BM, "{e:?}");
 }
 
@@ -67,7 +72,10 @@ fn sgm_accuracy() {
     };
     let e = run(&mut SgmMatcher::new(p, 741, 500).unwrap());
     assert!(e.density > DENSITY_SGM, "{e:?}");
-    assert!(e.bad2_valid < BAD2_VALID_SGM && e.bad1_valid < BAD1_VALID_SGM, "{e:?}");
+    assert!(
+        e.bad2_valid < BAD2_VALID_SGM && e.bad1_valid < BAD1_VALID_SGM,
+        "{e:?}"
+    );
     assert!(e.bad2_all < BAD2_ALL_SGM, "{e:?}");
 }
 

@@ -5,7 +5,7 @@ mod common;
 use common::{render, Texture};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use stereo::bm::{BlockMatcher, BmParams};
-use stereo::calib::{Calibration, CalibError, Intrinsics, Rectifier, RectifyError};
+use stereo::calib::{CalibError, Calibration, Intrinsics, Rectifier, RectifyError};
 use stereo::{DisparityMap, DisparityMatcher, GrayImage};
 
 const W: usize = 320;
@@ -45,9 +45,7 @@ fn view(k: &Intrinsics, cam_from_world: &Matrix3<f64>, c: Vector3<f64>) -> GrayI
 fn calibration(a: &Matrix3<f64>, b: &Matrix3<f64>, oversize: f64) -> Calibration {
     let r = b * a.transpose();
     let t = -(b * Vector3::new(BASELINE, 0.0, 0.0));
-    let rows = |m: &Matrix3<f64>| {
-        [0, 1, 2].map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]])
-    };
+    let rows = |m: &Matrix3<f64>| [0, 1, 2].map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]]);
     Calibration {
         width: W,
         height: H,
@@ -88,7 +86,12 @@ fn check_pair(a: Matrix3<f64>, b: Matrix3<f64>, oversize: f64) -> (f64, f64) {
             }
             inside += 1;
             let Some(got) = d.get(u, v) else { continue };
-            let ray = world_from_rect * Vector3::new((u as f64 - cam.cx) / cam.f, (v as f64 - cam.cy) / cam.f, 1.0);
+            let ray = world_from_rect
+                * Vector3::new(
+                    (u as f64 - cam.cx) / cam.f,
+                    (v as f64 - cam.cy) / cam.f,
+                    1.0,
+                );
             let p = ray * (PLANE_Z / ray.z);
             let z_rect = (rect.rect_from_left() * a * p).z;
             errs.push((got as f64 - cam.f * cam.baseline / z_rect).abs());
@@ -103,7 +106,10 @@ fn rectification_restores_row_alignment() {
     // Both cameras rotated differently by a few degrees, with lens distortion.
     let (median, density) = check_pair(rot(2.0, -1.5, 1.0), rot(-1.0, 2.0, -2.0), 1.0);
     println!("rotated pair: median error {median:.3} px, density {density:.3}");
-    assert!(median < 0.2 && density > 0.6, "median {median} density {density}");
+    assert!(
+        median < 0.2 && density > 0.6,
+        "median {median} density {density}"
+    );
 }
 
 #[test]
@@ -111,7 +117,10 @@ fn heads_yawed_on_a_common_baseline_are_rectified() {
     // Hammerhead-like: both cameras yawed 20 degrees on the same bar, oversized view.
     let (median, density) = check_pair(rot(0.5, 20.0, 0.0), rot(0.0, 20.5, 0.3), 1.2);
     println!("yawed pair: median error {median:.3} px, density {density:.3}");
-    assert!(median < 0.2 && density > 0.5, "median {median} density {density}");
+    assert!(
+        median < 0.2 && density > 0.5,
+        "median {median} density {density}"
+    );
 }
 
 #[test]
@@ -135,7 +144,9 @@ fn unrectified_rotated_pair_does_not_match() {
 fn mis_sized_frame_is_a_rectify_error() {
     let calib = calibration(&rot(0.0, 0.0, 0.0), &rot(0.0, 1.0, 0.0), 1.0);
     let rect = Rectifier::new(&calib).unwrap();
-    let e = rect.rectify_left(GrayImage::new(W + 2, H).view()).unwrap_err();
+    let e = rect
+        .rectify_left(GrayImage::new(W + 2, H).view())
+        .unwrap_err();
     assert_eq!(
         e,
         RectifyError::SizeMismatch {
@@ -175,13 +186,18 @@ fn calibration_file_errors_name_the_field() {
     assert_eq!((rect.camera().width, rect.camera().height), (1536, 1152));
 
     let e = Calibration::from_toml(&GOOD.replace("k1 = -0.1", "k9 = -0.1")).unwrap_err();
-    assert!(matches!(e, CalibError::Parse(_)) && e.to_string().contains("k9"), "{e}");
+    assert!(
+        matches!(e, CalibError::Parse(_)) && e.to_string().contains("k9"),
+        "{e}"
+    );
     let e = Calibration::from_toml(&GOOD.replace("cy = 480.0\nk1", "k1")).unwrap_err();
     assert!(e.to_string().contains("cy"), "{e}");
     let e = Calibration::from_toml(&GOOD.replacen("fx = 1000.0", "fx = -5.0", 1)).unwrap_err();
     assert!(e.to_string().contains("left.fx"), "{e}");
-    let e = Calibration::from_toml(&GOOD.replace("[0.0, 1.0, 0.0]", "[0.0, 2.0, 0.0]")).unwrap_err();
+    let e =
+        Calibration::from_toml(&GOOD.replace("[0.0, 1.0, 0.0]", "[0.0, 2.0, 0.0]")).unwrap_err();
     assert!(e.to_string().contains("rotation"), "{e}");
-    let e = Calibration::from_toml(&GOOD.replace("[-1.0, 0.0, 0.0]", "[0.0, 0.0, 0.0]")).unwrap_err();
+    let e =
+        Calibration::from_toml(&GOOD.replace("[-1.0, 0.0, 0.0]", "[0.0, 0.0, 0.0]")).unwrap_err();
     assert!(e.to_string().contains("translation"), "{e}");
 }

@@ -58,9 +58,16 @@ fn constant_subpixel_disparity_is_recovered() {
         let mut out = DisparityMap::new(W, H);
         m.compute(l.view(), r.view(), &mut out).unwrap();
         let (mean, p95, density) = errors(&out, |_| d0, 48);
-        println!("{}: mean {mean:.3} p95 {p95:.3} density {density:.3}", m.name());
+        println!(
+            "{}: mean {mean:.3} p95 {p95:.3} density {density:.3}",
+            m.name()
+        );
         assert!(density > 0.9, "{} density {density}", m.name());
-        assert!(mean < 0.25 && p95 < 0.5, "{} mean {mean} p95 {p95}", m.name());
+        assert!(
+            mean < 0.25 && p95 < 0.5,
+            "{} mean {mean} p95 {p95}",
+            m.name()
+        );
     }
 }
 
@@ -73,9 +80,16 @@ fn planar_disparity_is_recovered() {
         let mut out = DisparityMap::new(W, H);
         m.compute(l.view(), r.view(), &mut out).unwrap();
         let (mean, p95, density) = errors(&out, |x| a + b * x as f64, 48);
-        println!("{}: mean {mean:.3} p95 {p95:.3} density {density:.3}", m.name());
+        println!(
+            "{}: mean {mean:.3} p95 {p95:.3} density {density:.3}",
+            m.name()
+        );
         assert!(density > 0.85, "{} density {density}", m.name());
-        assert!(mean < 0.25 && p95 < 0.6, "{} mean {mean} p95 {p95}", m.name());
+        assert!(
+            mean < 0.25 && p95 < 0.6,
+            "{} mean {mean} p95 {p95}",
+            m.name()
+        );
     }
 }
 
@@ -144,7 +158,10 @@ fn mis_sized_frame_is_an_error() {
         let bad = GrayImage::new(W, H + 1);
         let mut out = DisparityMap::new(W, H);
         let e = m.compute(ok.view(), bad.view(), &mut out).unwrap_err();
-        assert!(matches!(e, MatchError::SizeMismatch { which: "right", .. }), "{e}");
+        assert!(
+            matches!(e, MatchError::SizeMismatch { which: "right", .. }),
+            "{e}"
+        );
         let e = m
             .compute(bad.view(), ok.view(), &mut out)
             .unwrap_err()
@@ -160,8 +177,12 @@ fn output_is_deterministic_across_thread_counts() {
         let mut a = DisparityMap::new(W, H);
         let mut b = DisparityMap::new(W, H);
         m.compute(l.view(), r.view(), &mut a).unwrap();
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        pool.install(|| m.compute(l.view(), r.view(), &mut b)).unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        pool.install(|| m.compute(l.view(), r.view(), &mut b))
+            .unwrap();
         assert!(a == b, "{}", m.name());
     }
 }
@@ -172,11 +193,17 @@ fn bad_params_are_rejected() {
         num_disparities: 20,
         ..Default::default()
     };
-    assert!(matches!(BlockMatcher::new(p, W, H), Err(MatchError::InvalidParams(_))));
+    assert!(matches!(
+        BlockMatcher::new(p, W, H),
+        Err(MatchError::InvalidParams(_))
+    ));
     let p = SgmParams {
         p1: 50,
         p2: 40,
         ..Default::default()
     };
-    assert!(matches!(SgmMatcher::new(p, W, H), Err(MatchError::InvalidParams(_))));
+    assert!(matches!(
+        SgmMatcher::new(p, W, H),
+        Err(MatchError::InvalidParams(_))
+    ));
 }
