@@ -18,7 +18,8 @@ pub struct CameraModel {
 impl CameraModel {
     /// Range along the optical axis (m) for a disparity (px); `None` for invalid or non-positive.
     pub fn depth(&self, disparity: f32) -> Option<f64> {
-        (disparity.is_finite() && disparity > 0.0).then(|| self.fx * self.baseline_m / disparity as f64)
+        (disparity.is_finite() && disparity > 0.0)
+            .then(|| self.fx * self.baseline_m / disparity as f64)
     }
 
     /// 3D point in the optical camera frame (x right, y down, z forward) of pixel (u, v).

@@ -10,7 +10,12 @@ pub trait Inspect<P: ?Sized> {
 }
 
 fn prefix(h: &Header) -> String {
-    format!("seq={} stamp={:.3}s src={}", h.seq, h.stamp_ns as f64 * 1e-9, h.source)
+    format!(
+        "seq={} stamp={:.3}s src={}",
+        h.seq,
+        h.stamp_ns as f64 * 1e-9,
+        h.source
+    )
 }
 
 fn mean<T: Copy + Into<f64>>(values: impl Iterator<Item = T>) -> f64 {
@@ -27,7 +32,9 @@ impl Inspect<[u8]> for StereoFrameHeader {
         &self.hdr
     }
     fn summary(&self, payload: &[u8]) -> String {
-        let encoding = self.encoding().map_or("invalid".into(), |e| format!("{e:?}"));
+        let encoding = self
+            .encoding()
+            .map_or("invalid".into(), |e| format!("{e:?}"));
         let brightness = match self.planes(payload) {
             Some((left, _)) => format!("left mean {:.1}", mean(left.iter().step_by(64).copied())),
             None => format!("BAD SIZE {} bytes", payload.len()),
@@ -119,7 +126,10 @@ impl Inspect<[u8]> for WaterMaskHeader {
         &self.hdr
     }
     fn summary(&self, payload: &[u8]) -> String {
-        let water = payload.iter().filter(|&&b| b & water_cue::WATER != 0).count();
+        let water = payload
+            .iter()
+            .filter(|&&b| b & water_cue::WATER != 0)
+            .count();
         format!(
             "{} head={} {}x{} regions={} water={:.1}%",
             prefix(&self.hdr),

@@ -108,10 +108,8 @@ pub const WATER_MASK: Topic<[u8], WaterMaskHeader> = Topic::new(
     "usv/perception/water_mask",
     Qos::latest(4).with_slice(640 * 480),
 );
-pub const WORLD_MAP: Topic<[MapCell], WorldMapHeader> = Topic::new(
-    "usv/mapper/world_map",
-    Qos::latest(1).with_slice(200 * 200),
-);
+pub const WORLD_MAP: Topic<[MapCell], WorldMapHeader> =
+    Topic::new("usv/mapper/world_map", Qos::latest(1).with_slice(200 * 200));
 pub const CONTACTS: Topic<ContactList> = Topic::new("usv/tracker/contacts", Qos::latest(1));
 pub const ACTUATOR_COMMAND: Topic<ActuatorCommand> =
     Topic::new("usv/control/actuator_command", Qos::lossless(1));

@@ -18,8 +18,8 @@ mod service;
 mod shutdown;
 
 pub use health::Health;
-pub use pubsub::{Pod, Publisher, Subscriber};
-pub use service::{Input, Service, Wake};
+pub use pubsub::{Pod, Publisher, Receive, Subscriber};
+pub use service::{tool_node, Input, Ports, Service, Wake};
 pub use shutdown::Shutdown;
 
 /// Environment variable through which the supervisor tells a process which service name it runs as

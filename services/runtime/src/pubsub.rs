@@ -45,7 +45,8 @@ fn open_event(node: &Node<ipc::Service>, name: &ServiceName) -> anyhow::Result<E
         .map_err(|e| anyhow::anyhow!("cannot open event service {name}: {e:?}"))
 }
 
-type PubSubBuilder<P, H> = iceoryx2::service::builder::publish_subscribe::Builder<P, H, ipc::Service>;
+type PubSubBuilder<P, H> =
+    iceoryx2::service::builder::publish_subscribe::Builder<P, H, ipc::Service>;
 
 /// Opens (or creates) a topic with its QoS. `open` is the final `open_or_create` call, which iceoryx2
 /// implements separately for fixed-size and slice payloads.
@@ -66,13 +67,13 @@ fn open_pubsub<P: ?Sized + IceoryxSend + Debug, H: ZeroCopySend + Debug, E: Debu
         .subscriber_max_buffer_size(q.subscriber_buffer)
         .subscriber_max_borrowed_samples(q.subscriber_borrowed)
         .enable_safe_overflow(q.safe_overflow);
-    let factory = open(builder).map_err(|e| anyhow::anyhow!("cannot open topic {}: {e:?}", topic.name))?;
+    let factory =
+        open(builder).map_err(|e| anyhow::anyhow!("cannot open topic {}: {e:?}", topic.name))?;
     Ok((name, factory))
 }
 
 /// Publisher side of a topic: the data publisher, the paired notifier and a sequence counter.
-pub struct Publisher<P: ?Sized + IceoryxSend + Debug + 'static, H: ZeroCopySend + Debug + 'static>
-{
+pub struct Publisher<P: ?Sized + IceoryxSend + Debug + 'static, H: ZeroCopySend + Debug + 'static> {
     factory: PubSubFactory<P, H>,
     publisher: iceoryx2::port::publisher::Publisher<ipc::Service, P, H>,
     notifier: iceoryx2::port::notifier::Notifier<ipc::Service>,
@@ -92,7 +93,8 @@ impl<P: ?Sized + IceoryxSend + Debug, H: ZeroCopySend + Debug + Default> Publish
         lossless: bool,
         configure: impl FnOnce(
             iceoryx2::service::port_factory::publisher::PortFactoryPublisher<'_, ipc::Service, P, H>,
-        ) -> iceoryx2::service::port_factory::publisher::PortFactoryPublisher<
+        )
+            -> iceoryx2::service::port_factory::publisher::PortFactoryPublisher<
             '_,
             ipc::Service,
             P,
@@ -143,6 +145,11 @@ impl<P: ?Sized + IceoryxSend + Debug, H: ZeroCopySend + Debug + Default> Publish
         self.topic
     }
 
+    /// Number of subscribers currently attached to the topic.
+    pub fn subscriber_count(&self) -> usize {
+        self.factory.dynamic_config().number_of_subscribers()
+    }
+
     /// Sends a filled sample and wakes the subscribers. Returns how many subscribers received it.
     pub fn send(&mut self, sample: SampleMut<ipc::Service, P, H>) -> anyhow::Result<usize> {
         self.seq += 1;
@@ -153,7 +160,10 @@ impl<P: ?Sized + IceoryxSend + Debug, H: ZeroCopySend + Debug + Default> Publish
                 // Count the loss, clean up dead nodes so the next send does not wait on them again.
                 self.lost += 1;
                 self.factory.try_cleanup_dead_nodes();
-                tracing::warn!(topic = self.topic, "sample not delivered to every subscriber: {e:?}");
+                tracing::warn!(
+                    topic = self.topic,
+                    "sample not delivered to every subscriber: {e:?}"
+                );
                 0
             }
             Err(e) => anyhow::bail!("send on {} failed: {e:?}", self.topic),
@@ -168,7 +178,14 @@ impl<P: ?Sized + IceoryxSend + Debug, H: ZeroCopySend + Debug + Default> Publish
 impl<P: ZeroCopySend + Debug + Copy, H: ZeroCopySend + Debug + Default> Publisher<P, H> {
     pub(crate) fn fixed(node: &Node<ipc::Service>, topic: &Topic<P, H>) -> anyhow::Result<Self> {
         let (name, factory) = open_pubsub(node, topic, |b| b.open_or_create())?;
-        Self::from_parts(node, factory, &name, topic.name, !topic.qos.safe_overflow, |b| b)
+        Self::from_parts(
+            node,
+            factory,
+            &name,
+            topic.name,
+            !topic.qos.safe_overflow,
+            |b| b,
+        )
     }
 
     /// Publishes a copy of a (small) fixed-size message. Large payloads use [`Publisher::loan_slice`].
@@ -186,19 +203,25 @@ impl<T: Pod, H: ZeroCopySend + Debug + Default> Publisher<[T], H> {
     pub(crate) fn slice(node: &Node<ipc::Service>, topic: &Topic<[T], H>) -> anyhow::Result<Self> {
         let (name, factory) = open_pubsub(node, topic, |b| b.open_or_create())?;
         let initial = topic.qos.initial_slice_len;
-        Self::from_parts(node, factory, &name, topic.name, !topic.qos.safe_overflow, |b| {
-            b.initial_max_slice_len(initial)
-                .allocation_strategy(AllocationStrategy::PowerOfTwo)
-        })
+        Self::from_parts(
+            node,
+            factory,
+            &name,
+            topic.name,
+            !topic.qos.safe_overflow,
+            |b| {
+                b.initial_max_slice_len(initial)
+                    .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            },
+        )
     }
 
     /// Loans a slice of `len` elements in shared memory to be filled in place and then passed to
     /// [`Publisher::send`]. The contents are unspecified (old sample data): overwrite all of it.
     pub fn loan_slice(&mut self, len: usize) -> anyhow::Result<SampleMut<ipc::Service, [T], H>> {
-        let sample = self
-            .publisher
-            .loan_slice_uninit(len)
-            .map_err(|e| anyhow::anyhow!("loan of {len} elements on {} failed: {e:?}", self.topic))?;
+        let sample = self.publisher.loan_slice_uninit(len).map_err(|e| {
+            anyhow::anyhow!("loan of {len} elements on {} failed: {e:?}", self.topic)
+        })?;
         // SAFETY: shared memory is zero-filled when mapped and only ever holds `T` values written by
         // earlier samples, and every bit pattern is a valid `T` (the `Pod` contract).
         Ok(unsafe { sample.assume_init() })
@@ -245,7 +268,8 @@ impl<P: ?Sized + IceoryxSend + Debug, H: ZeroCopySend + Debug> Subscriber<P, H> 
         self.topic
     }
 
-    pub(crate) fn listener(&self) -> &iceoryx2::port::listener::Listener<ipc::Service> {
+    /// The wake-up listener of the paired event service (to attach to a WaitSet of one's own).
+    pub fn listener(&self) -> &iceoryx2::port::listener::Listener<ipc::Service> {
         &self.listener
     }
 
@@ -290,6 +314,9 @@ impl<P: ?Sized + IceoryxSend + Debug, H: ZeroCopySend + Debug> Subscriber<P, H> 
 /// Receive for fixed-size and slice payloads (iceoryx2 has one `receive` per kind).
 pub trait Receive<P: ?Sized + IceoryxSend + Debug + 'static, H: ZeroCopySend + Debug + 'static> {
     fn receive_one(&self) -> anyhow::Result<Option<Sample<ipc::Service, P, H>>>;
+
+    /// Receives the next sample and passes its user header and payload to `f`.
+    fn receive_with<R>(&self, f: impl FnOnce(&H, &P) -> R) -> anyhow::Result<Option<R>>;
 }
 
 impl<P: ZeroCopySend + Debug, H: ZeroCopySend + Debug> Receive<P, H> for Subscriber<P, H> {
@@ -298,6 +325,10 @@ impl<P: ZeroCopySend + Debug, H: ZeroCopySend + Debug> Receive<P, H> for Subscri
             .receive()
             .map_err(|e| anyhow::anyhow!("receive on {} failed: {e:?}", self.topic))
     }
+
+    fn receive_with<R>(&self, f: impl FnOnce(&H, &P) -> R) -> anyhow::Result<Option<R>> {
+        Ok(self.receive_one()?.map(|s| f(s.user_header(), s.payload())))
+    }
 }
 
 impl<T: Pod, H: ZeroCopySend + Debug> Receive<[T], H> for Subscriber<[T], H> {
@@ -305,6 +336,10 @@ impl<T: Pod, H: ZeroCopySend + Debug> Receive<[T], H> for Subscriber<[T], H> {
         self.subscriber
             .receive()
             .map_err(|e| anyhow::anyhow!("receive on {} failed: {e:?}", self.topic))
+    }
+
+    fn receive_with<R>(&self, f: impl FnOnce(&H, &[T]) -> R) -> anyhow::Result<Option<R>> {
+        Ok(self.receive_one()?.map(|s| f(s.user_header(), s.payload())))
     }
 }
 

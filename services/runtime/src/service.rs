@@ -58,7 +58,9 @@ pub trait Ports {
     ) -> anyhow::Result<Subscriber<Self::Payload, Self::UserHeader>>;
 }
 
-impl<P: ZeroCopySend + Debug + Copy + 'static, H: ZeroCopySend + Debug + Default + 'static> Ports for Topic<P, H> {
+impl<P: ZeroCopySend + Debug + Copy + 'static, H: ZeroCopySend + Debug + Default + 'static> Ports
+    for Topic<P, H>
+{
     type Payload = P;
     type UserHeader = H;
     fn publisher(&self, node: &Node<ipc::Service>) -> anyhow::Result<Publisher<P, H>> {
@@ -78,6 +80,21 @@ impl<T: Pod, H: ZeroCopySend + Debug + Default + 'static> Ports for Topic<[T], H
     fn subscriber(&self, node: &Node<ipc::Service>) -> anyhow::Result<Subscriber<[T], H>> {
         Subscriber::slice(node, self)
     }
+}
+
+/// A node for command-line tools (`usv hz`, benchmarks): in this process's domain, with iceoryx2's
+/// signal handling off, and no heartbeat, so inspecting a running set does not disturb it.
+pub fn tool_node(name: &str) -> anyhow::Result<Node<ipc::Service>> {
+    crate::domain::quiet_iceoryx_logs();
+    let node_name: NodeName = name
+        .try_into()
+        .map_err(|e| anyhow::anyhow!("invalid node name {name:?}: {e:?}"))?;
+    NodeBuilder::new()
+        .name(&node_name)
+        .config(&crate::domain::config()?)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow::anyhow!("cannot create node {name:?}: {e:?}"))
 }
 
 /// A running service process.
