@@ -30,6 +30,9 @@ impl Health {
     }
 
     /// An input derived from sensor time `stamp_ns` was processed; `started` is when work on it began.
+    /// Record only the service's primary input (the one derived from camera frames): lock-step
+    /// sources read `last_input_stamp_ns` as "this frame is done", so a faster side input such as INS
+    /// must not advance it.
     pub fn record(&mut self, stamp_ns: u64, started: Instant) {
         let us = started.elapsed().as_micros().min(u32::MAX as u128) as u32;
         let b = &mut self.beat;

@@ -12,6 +12,7 @@ pub mod clock;
 pub mod config;
 pub mod domain;
 mod health;
+pub mod lockstep;
 pub mod logging;
 mod pubsub;
 mod service;
