@@ -66,21 +66,25 @@ pub struct SgmMatcher {
 struct Band {
     cost: Vec<u8>,
     sum: Vec<u16>,
-    /// Path states with one guard byte (255) each side of every pixel's `nd` values.
-    tb: Vec<u8>,
-    tlbr: Vec<u8>,
-    trbl: Vec<u8>,
-    tb_min: Vec<u8>,
-    tlbr_min: Vec<u8>,
-    trbl_min: Vec<u8>,
-    /// Small per-pixel buffers: horizontal paths (previous, current), diagonal save slots.
+    /// Vertical and diagonal path states of the previous and the current row, each pixel's `nd`
+    /// values with one guard byte (255) either side; swapped after every row.
+    prev: Paths,
+    cur: Paths,
+    /// Horizontal path state of the previous and the current pixel.
     lr: [Vec<u8>; 2],
-    save: [Vec<u8>; 2],
     zero: Vec<u8>,
     tmp: Vec<u16>,
     mr: Vec<u16>,
     md: Vec<u16>,
     best: Vec<u16>,
+}
+
+struct Paths {
+    tb: Vec<u8>,
+    tlbr: Vec<u8>,
+    trbl: Vec<u8>,
+    /// Per-pixel minimum of each path.
+    min: Vec<[u8; 3]>,
 }
 
 impl SgmMatcher {
@@ -109,18 +113,19 @@ impl SgmMatcher {
             }
             v
         };
+        let paths = || Paths {
+            tb: guarded(width),
+            tlbr: guarded(width),
+            trbl: guarded(width),
+            min: vec![[0; 3]; width],
+        };
         let bands = (0..BANDS)
             .map(|_| Band {
                 cost: vec![0; width * nd],
                 sum: vec![0; width * nd],
-                tb: guarded(width),
-                tlbr: guarded(width),
-                trbl: guarded(width),
-                tb_min: vec![0; width],
-                tlbr_min: vec![0; width],
-                trbl_min: vec![0; width],
+                prev: paths(),
+                cur: paths(),
                 lr: [guarded(1), guarded(1)],
-                save: [guarded(1), guarded(1)],
                 zero: guarded(1),
                 tmp: vec![0; nd],
                 mr: vec![0; width + nd],
@@ -237,14 +242,12 @@ fn sgm_band_impl(inp: &Input<'_>, p: &SgmParams, y0: usize, out: &mut [i16], s: 
     out.fill(INVALID);
     let ys = y0.saturating_sub(WARMUP);
     // Fresh start: zero previous cost makes the first row's path cost equal the pixel cost.
-    for buf in [&mut s.tb, &mut s.tlbr, &mut s.trbl] {
+    for buf in [&mut s.prev.tb, &mut s.prev.tlbr, &mut s.prev.trbl] {
         for px in buf.chunks_exact_mut(st) {
             px[1..=nd].fill(0);
         }
     }
-    s.tb_min.fill(0);
-    s.tlbr_min.fill(0);
-    s.trbl_min.fill(0);
+    s.prev.min.fill([0; 3]);
     for y in ys..y1.min(inp.h) {
         let cl = &inp.cl[y * w..(y + 1) * w];
         let cr = &inp.cr[y * (w + nd)..(y + 1) * (w + nd)];
@@ -255,6 +258,7 @@ fn sgm_band_impl(inp: &Input<'_>, p: &SgmParams, y0: usize, out: &mut [i16], s: 
             }
         }
         forward_row(s, w, nd, p);
+        std::mem::swap(&mut s.prev, &mut s.cur);
         if y >= y0 {
             backward_row(s, w, nd, p, &mut out[(y - y0) * w..(y - y0 + 1) * w]);
         }
@@ -281,50 +285,45 @@ fn step(prev: &[u8], pmin: u8, cost: &[u8], out: &mut [u8], p1: u8, p2: u8) -> u
     m
 }
 
+/// Left-to-right, top-down and both top diagonal paths for one row; leaves their sum in `sum`.
 #[inline(always)]
 fn forward_row(s: &mut Band, w: usize, nd: usize, p: &SgmParams) {
+    fn px(v: &[u8], x: usize, st: usize) -> &[u8] {
+        &v[x * st..(x + 1) * st]
+    }
     let st = nd + 2;
     let (p1, p2) = (p.p1, p.p2);
     let [lr_prev, lr_cur] = &mut s.lr;
-    let [save_prev, save_cur] = &mut s.save;
-    let (mut lr_min, mut diag_prev_min) = (0u8, 0u8);
+    let mut lr_min = 0u8;
     lr_prev[1..=nd].fill(0);
-    save_prev.copy_from_slice(&s.zero);
+    let (prev, cur) = (&s.prev, &mut s.cur);
     for x in 0..w {
         let cost = &s.cost[x * nd..(x + 1) * nd];
-        let px = x * st..(x + 1) * st;
-        // Left to right.
+        let o = x * st..(x + 1) * st;
         lr_min = step(lr_prev, lr_min, cost, lr_cur, p1, p2);
         std::mem::swap(lr_prev, lr_cur);
-        // Top to bottom, in place through a copy of the previous row's value.
-        save_cur.copy_from_slice(&s.tb[px.clone()]);
-        s.tb_min[x] = step(save_cur, s.tb_min[x], cost, &mut s.tb[px.clone()], p1, p2);
-        // Top-left to bottom-right: reads the previous row at x - 1, saved before it was
-        // overwritten in the previous iteration.
-        save_cur.copy_from_slice(&s.tlbr[px.clone()]);
-        let m = s.tlbr_min[x];
-        s.tlbr_min[x] = step(
-            save_prev,
-            diag_prev_min,
-            cost,
-            &mut s.tlbr[px.clone()],
-            p1,
-            p2,
-        );
-        diag_prev_min = m;
-        std::mem::swap(save_prev, save_cur);
-        // Top-right to bottom-left: x + 1 of the previous row is not overwritten yet.
-        let pmin = if x + 1 < w { s.trbl_min[x + 1] } else { 0 };
-        let (head, tail) = s.trbl.split_at_mut((x + 1) * st);
-        let prev = if x + 1 < w { &tail[..st] } else { &s.zero[..] };
-        s.trbl_min[x] = step(prev, pmin, cost, &mut head[x * st..], p1, p2);
-
+        // Diagonals start fresh at the image sides.
+        let (left, lmin) = if x > 0 {
+            (px(&prev.tlbr, x - 1, st), prev.min[x - 1][1])
+        } else {
+            (&s.zero[..], 0)
+        };
+        let (right, rmin) = if x + 1 < w {
+            (px(&prev.trbl, x + 1, st), prev.min[x + 1][2])
+        } else {
+            (&s.zero[..], 0)
+        };
+        cur.min[x] = [
+            step(px(&prev.tb, x, st), prev.min[x][0], cost, &mut cur.tb[o.clone()], p1, p2),
+            step(left, lmin, cost, &mut cur.tlbr[o.clone()], p1, p2),
+            step(right, rmin, cost, &mut cur.trbl[o.clone()], p1, p2),
+        ];
         let sum = &mut s.sum[x * nd..(x + 1) * nd];
         let (a, b, c, d) = (
             &lr_prev[1..],
-            &s.tb[px.start + 1..],
-            &s.tlbr[px.start + 1..],
-            &s.trbl[px.start + 1..],
+            &cur.tb[o.start + 1..],
+            &cur.tlbr[o.start + 1..],
+            &cur.trbl[o.start + 1..],
         );
         for ((((o, &a), &b), &c), &d) in sum.iter_mut().zip(a).zip(b).zip(c).zip(d) {
             *o = a as u16 + b as u16 + c as u16 + d as u16;
