@@ -40,7 +40,13 @@ impl LockStep {
         self.done.keys().map(String::as_str)
     }
 
-    fn drain(&mut self) -> anyhow::Result<()> {
+    /// The heartbeat subscriber, to wait on it in `Service::run` (`lockstep.heartbeats().input(..)`).
+    pub fn heartbeats(&self) -> &Subscriber<Heartbeat, ()> {
+        &self.heartbeats
+    }
+
+    /// Reads the heartbeats that arrived since the last call.
+    pub fn update(&mut self) -> anyhow::Result<()> {
         while let Some(sample) = self.heartbeats.receive()? {
             let beat = sample.payload();
             if let Some(done) = self.done.get_mut(beat.hdr.source.as_str()) {
@@ -50,7 +56,13 @@ impl LockStep {
         Ok(())
     }
 
-    fn missing(&self, stamp_ns: u64) -> Vec<String> {
+    /// True once every pipeline service reported `stamp_ns` done.
+    pub fn done(&self, stamp_ns: u64) -> bool {
+        self.done.values().all(|&done| done >= stamp_ns)
+    }
+
+    /// The services that have not reported `stamp_ns` yet.
+    pub fn missing(&self, stamp_ns: u64) -> Vec<String> {
         self.done
             .iter()
             .filter(|(_, &done)| done < stamp_ns)
@@ -67,7 +79,7 @@ impl LockStep {
     ) -> anyhow::Result<Step> {
         let end = Instant::now() + timeout;
         loop {
-            self.drain()?;
+            self.update()?;
             let missing = self.missing(stamp_ns);
             if missing.is_empty() {
                 return Ok(Step::Done);
