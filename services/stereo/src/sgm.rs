@@ -40,7 +40,9 @@ impl Default for SgmParams {
             num_disparities: 128,
             p1: 10,
             p2: 120,
-            uniqueness_ratio: 5,
+            // Tuned on Middlebury Motorcycle: best accuracy on produced pixels that still
+            // keeps density above OpenCV SGBM's.
+            uniqueness_ratio: 20,
             lr_max_diff: 1,
         }
     }
@@ -314,7 +316,14 @@ fn forward_row(s: &mut Band, w: usize, nd: usize, p: &SgmParams) {
             (&s.zero[..], 0)
         };
         cur.min[x] = [
-            step(px(&prev.tb, x, st), prev.min[x][0], cost, &mut cur.tb[o.clone()], p1, p2),
+            step(
+                px(&prev.tb, x, st),
+                prev.min[x][0],
+                cost,
+                &mut cur.tb[o.clone()],
+                p1,
+                p2,
+            ),
             step(left, lmin, cost, &mut cur.tlbr[o.clone()], p1, p2),
             step(right, rmin, cost, &mut cur.trbl[o.clone()], p1, p2),
         ];
