@@ -7,6 +7,7 @@ pub mod calib;
 pub mod disparity;
 pub mod eval;
 pub mod image;
+pub mod pipeline;
 pub mod plane;
 pub mod range;
 pub mod sgm;

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod match_cmd;
+mod run_cmd;
 
 #[derive(Parser)]
 #[command(name = "stereo", version, about = "Stereo rectification and matching")]
@@ -16,13 +17,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Match a stereo pair from image files.
     Match(match_cmd::MatchArgs),
+    /// Run as the stereo service of a process set.
+    Run(run_cmd::RunArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Match(args) => match_cmd::run(args),
+        Command::Run(args) => run_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
