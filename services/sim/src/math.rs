@@ -68,6 +68,21 @@ pub fn mix(a: V3, b: V3, t: f32) -> V3 {
     a + (b - a) * t
 }
 
+/// Cosine to ~3e-5, several times faster than libm's (used per pixel for waves).
+#[inline(always)]
+pub fn fast_cos(x: f32) -> f32 {
+    use std::f32::consts::{FRAC_PI_2, PI, TAU};
+    let k = (x * (1.0 / TAU) + 0.5) as i32 - (x * (1.0 / TAU) + 0.5 < 0.0) as i32;
+    let y = (x - k as f32 * TAU).abs(); // [0, pi]
+    let (y, sign) = if y > FRAC_PI_2 {
+        (PI - y, -1.0)
+    } else {
+        (y, 1.0)
+    };
+    let y2 = y * y;
+    sign * (1.0 + y2 * (-0.5 + y2 * (1.0 / 24.0 + y2 * (-1.0 / 720.0 + y2 * (1.0 / 40320.0)))))
+}
+
 /// Wraps an angle to (-pi, pi].
 pub fn wrap_pi(a: f64) -> f64 {
     let r = a.rem_euclid(std::f64::consts::TAU);
@@ -81,6 +96,14 @@ pub fn wrap_pi(a: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fast_cos_matches() {
+        for i in -2000..2000 {
+            let x = i as f32 * 0.0731;
+            assert!((fast_cos(x) - x.cos()).abs() < 5e-5, "{x}");
+        }
+    }
 
     #[test]
     fn optical_axes() {

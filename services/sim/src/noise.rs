@@ -37,6 +37,14 @@ pub fn unit(h: u32) -> f32 {
     (h >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
+/// Floor without a libm call (the baseline x86-64 target has no SSE4.1 `roundss`); exact for
+/// |x| < 2^31.
+#[inline(always)]
+pub fn floor_i(x: f32) -> i32 {
+    let i = x as i32;
+    i - (x < i as f32) as i32
+}
+
 #[inline(always)]
 fn fade(t: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
@@ -50,9 +58,8 @@ fn lerp(a: f32, b: f32, t: f32) -> f32 {
 /// 2-D value noise in [0, 1).
 #[inline]
 pub fn value2(x: f32, y: f32, seed: u32) -> f32 {
-    let (fx, fy) = (x.floor(), y.floor());
-    let (ix, iy) = (fx as i32, fy as i32);
-    let (tx, ty) = (fade(x - fx), fade(y - fy));
+    let (ix, iy) = (floor_i(x), floor_i(y));
+    let (tx, ty) = (fade(x - ix as f32), fade(y - iy as f32));
     let a = unit(hash2(ix, iy, seed));
     let b = unit(hash2(ix + 1, iy, seed));
     let c = unit(hash2(ix, iy + 1, seed));
@@ -63,9 +70,12 @@ pub fn value2(x: f32, y: f32, seed: u32) -> f32 {
 /// 3-D value noise in [0, 1).
 #[inline]
 pub fn value3(x: f32, y: f32, z: f32, seed: u32) -> f32 {
-    let (fx, fy, fz) = (x.floor(), y.floor(), z.floor());
-    let (ix, iy, iz) = (fx as i32, fy as i32, fz as i32);
-    let (tx, ty, tz) = (fade(x - fx), fade(y - fy), fade(z - fz));
+    let (ix, iy, iz) = (floor_i(x), floor_i(y), floor_i(z));
+    let (tx, ty, tz) = (
+        fade(x - ix as f32),
+        fade(y - iy as f32),
+        fade(z - iz as f32),
+    );
     let c = |dx, dy, dz| unit(hash3(ix + dx, iy + dy, iz + dz, seed));
     let z0 = lerp(
         lerp(c(0, 0, 0), c(1, 0, 0), tx),

@@ -8,6 +8,7 @@
 
 mod scene;
 mod shade;
+mod skycache;
 
 use crate::camera::{Camera, Encoding, StereoHead};
 use crate::math::Pose;
@@ -16,6 +17,7 @@ use crate::world::{Label, World};
 use rayon::prelude::*;
 use scene::{Ray, Scene};
 use shade::{Surface, Tracer};
+use skycache::SkyCache;
 
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
@@ -33,6 +35,7 @@ pub enum RenderError {
 #[derive(Default)]
 pub struct Renderer {
     scene: Scene,
+    sky: SkyCache,
     scene_time: Option<f64>,
 }
 
@@ -41,10 +44,11 @@ impl Renderer {
         Renderer::default()
     }
 
-    /// Places moving objects at time `t` (no-op if the scene is already at `t`).
+    /// Places moving objects and moves clouds to time `t` (no-op if already at `t`).
     pub fn prepare(&mut self, world: &World, t: f64) {
         if self.scene_time != Some(t) {
             self.scene.build(world, t);
+            self.sky.fill(&world.sky, t as f32);
             self.scene_time = Some(t);
         }
     }
@@ -65,7 +69,7 @@ impl Renderer {
         }
         self.prepare(world, t);
         let [cl, cr] = head.cameras(body);
-        let tracer = Tracer::new(world, &self.scene, t as f32, cl.pixel_angle());
+        let tracer = Tracer::new(world, &self.scene, &self.sky, t as f32, cl.pixel_angle());
         render_image(&tracer, &cl, head, t, left);
         render_image(&tracer, &cr, head, t, right);
         Ok(())
@@ -87,7 +91,7 @@ impl Renderer {
         check_len("label", head, labels.len(), head.pixel_count())?;
         self.prepare(world, t);
         let [cam, _] = head.cameras(body);
-        let tracer = Tracer::new(world, &self.scene, t as f32, cam.pixel_angle());
+        let tracer = Tracer::new(world, &self.scene, &self.sky, t as f32, cam.pixel_angle());
         let w = cam.width as usize;
         let fb = cam.f * cam.baseline;
         disparity

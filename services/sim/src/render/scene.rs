@@ -218,8 +218,14 @@ pub(crate) struct Ray {
 impl Ray {
     #[inline]
     pub fn new(o: V3, d: V3) -> Ray {
-        let inv = v3(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
-        Ray { o, d, inv }
+        // A zero component would give inf * 0 = NaN in the slab test; a huge finite reciprocal
+        // keeps the test NaN-free so it can use plain min/max.
+        let r = |c: f32| 1.0 / if c.abs() < 1e-20 { 1e-20 } else { c };
+        Ray {
+            o,
+            d,
+            inv: v3(r(d.x), r(d.y), r(d.z)),
+        }
     }
 }
 
@@ -341,11 +347,7 @@ impl Scene {
             self.nodes[node].count = n as u32;
             return;
         }
-        let mid = start + n / 2;
-        let centroids = &self.centroids;
-        self.order[start..end].select_nth_unstable_by(n / 2, |&a, &b| {
-            centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
-        });
+        let mid = self.sah_partition(start, end, axis, clo[axis], extent[axis]);
         let left = self.nodes.len();
         let blank = self.nodes[node];
         self.nodes.push(blank);
@@ -354,6 +356,72 @@ impl Scene {
         self.nodes[node].count = 0;
         self.split(left, start, mid);
         self.split(left + 1, mid, end);
+    }
+
+    /// Partitions `order[start..end]` along `axis` by the surface area heuristic over a few bins
+    /// (cheaper traversal than a median split where objects cluster, e.g. trees along banks).
+    /// Returns the split index; falls back to the median if binning cannot separate.
+    fn sah_partition(
+        &mut self,
+        start: usize,
+        end: usize,
+        axis: usize,
+        lo: f32,
+        extent: f32,
+    ) -> usize {
+        const BINS: usize = 12;
+        let bin_of = |c: f32| (((c - lo) / extent * BINS as f32) as usize).min(BINS - 1);
+        let empty = (V3::repeat(f32::MAX), V3::repeat(f32::MIN));
+        let mut bins = [(empty, 0usize); BINS];
+        for &i in &self.order[start..end] {
+            let b = bin_of(self.centroids[i as usize][axis]);
+            let p = &self.prims[i as usize];
+            bins[b].0 = (bins[b].0 .0.inf(&p.lo), bins[b].0 .1.sup(&p.hi));
+            bins[b].1 += 1;
+        }
+        let area = |(a, b): (V3, V3)| {
+            let e = (b - a).sup(&V3::zeros());
+            e.x * e.y + e.y * e.z + e.z * e.x
+        };
+        let grow = |acc: (V3, V3), b: (V3, V3)| (acc.0.inf(&b.0), acc.1.sup(&b.1));
+        let (mut best, mut best_cost) = (0, f32::MAX);
+        for split in 1..BINS {
+            let (mut l, mut nl, mut r, mut nr) = (empty, 0, empty, 0);
+            for (k, (bb, n)) in bins.iter().enumerate() {
+                if k < split {
+                    l = grow(l, *bb);
+                    nl += n;
+                } else {
+                    r = grow(r, *bb);
+                    nr += n;
+                }
+            }
+            if nl == 0 || nr == 0 {
+                continue;
+            }
+            let cost = area(l) * nl as f32 + area(r) * nr as f32;
+            if cost < best_cost {
+                best_cost = cost;
+                best = split;
+            }
+        }
+        let n = end - start;
+        if best == 0 {
+            let centroids = &self.centroids;
+            self.order[start..end].select_nth_unstable_by(n / 2, |&a, &b| {
+                centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
+            });
+            return start + n / 2;
+        }
+        // In-place partition: bins below `best` to the front.
+        let mut i = start;
+        for j in start..end {
+            if bin_of(self.centroids[self.order[j] as usize][axis]) < best {
+                self.order.swap(i, j);
+                i += 1;
+            }
+        }
+        i
     }
 
     /// Closest primitive hit before `tmax`: (distance, normal, primitive index).
@@ -398,14 +466,30 @@ impl Scene {
 
 #[inline(always)]
 fn slab(ray: &Ray, lo: V3, hi: V3, tmax: f32) -> bool {
+    // Plain comparisons compile to single min/max instructions (f32::min handles NaN, slower).
+    #[inline(always)]
+    fn min(a: f32, b: f32) -> f32 {
+        if a < b {
+            a
+        } else {
+            b
+        }
+    }
+    #[inline(always)]
+    fn max(a: f32, b: f32) -> f32 {
+        if a > b {
+            a
+        } else {
+            b
+        }
+    }
     let mut t0 = 0.0f32;
     let mut t1 = tmax;
     for i in 0..3 {
         let a = (lo[i] - ray.o[i]) * ray.inv[i];
         let b = (hi[i] - ray.o[i]) * ray.inv[i];
-        // NaN (0 * inf) compares false and leaves the bound unchanged: treated as "inside the slab".
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
+        t0 = max(t0, min(a, b));
+        t1 = min(t1, max(a, b));
     }
     t0 <= t1
 }

@@ -1,6 +1,7 @@
 //! Ray casting against water, objects and terrain, and the shading of what a ray hits.
 
 use super::scene::{Ray, Scene};
+use super::skycache::SkyCache;
 use crate::math::{mix, smoothstep, v3, V3};
 use crate::noise::{fbm2, fbm3};
 use crate::world::{Label, World, WorldKind};
@@ -31,16 +32,18 @@ const FAR: f32 = 20_000.0;
 pub(crate) struct Tracer<'a> {
     world: &'a World,
     scene: &'a Scene,
+    sky: &'a SkyCache,
     time: f32,
     /// Angular size of a pixel: distance * pix = pixel footprint, for texture level of detail.
     pix: f32,
 }
 
 impl<'a> Tracer<'a> {
-    pub fn new(world: &'a World, scene: &'a Scene, time: f32, pix: f32) -> Self {
+    pub fn new(world: &'a World, scene: &'a Scene, sky: &'a SkyCache, time: f32, pix: f32) -> Self {
         Tracer {
             world,
             scene,
+            sky,
             time,
             pix,
         }
@@ -64,18 +67,19 @@ impl<'a> Tracer<'a> {
                 hit.surface = Surface::Water;
             }
         }
+        // Terrain before objects: a bank hit shortens the ray, so trees behind it are culled.
+        if let Some(terrain) = &self.world.terrain {
+            if let Some(t) = terrain.intersect(o, d, hit.t, self.pix) {
+                hit.t = t;
+                hit.surface = Surface::Terrain;
+            }
+        }
         if let Some((t, n, i)) = self.scene.intersect(ray, hit.t) {
             hit = Hit {
                 t,
                 surface: Surface::Prim(i),
                 n,
             };
-        }
-        if let Some(terrain) = &self.world.terrain {
-            if let Some(t) = terrain.intersect(o, d, hit.t, self.pix) {
-                hit.t = t;
-                hit.surface = Surface::Terrain;
-            }
         }
         hit
     }
@@ -108,7 +112,7 @@ impl<'a> Tracer<'a> {
                 // Below the horizon past the terrain's extent: distant ground, lost in haze.
                 return mix(v3(0.2, 0.22, 0.14), sky.horizon, 0.8);
             }
-            return sky.radiance(o, d, self.time);
+            return self.sky_radiance(d);
         }
         let p = o + d * hit.t;
         let dist = travelled + hit.t;
@@ -143,6 +147,18 @@ impl<'a> Tracer<'a> {
         // Aerial perspective: contrast fades towards the horizon colour with distance.
         let haze = 1.0 - (-dist / self.world.visibility).exp();
         mix(c, sky.horizon, haze)
+    }
+
+    /// Sky seen along `d` (cached dome plus the analytic sun).
+    #[inline]
+    fn sky_radiance(&self, d: V3) -> V3 {
+        let sky = &self.world.sky;
+        let dome = if d.z >= 0.0 {
+            self.sky.lookup(d)
+        } else {
+            sky.horizon
+        };
+        dome + sky.sun_term(d)
     }
 
     /// Sun (no shadows) plus sky ambient light.
@@ -194,7 +210,7 @@ impl<'a> Tracer<'a> {
         let reflected = if reflect {
             self.shade(p + v3(0.0, 0.0, 1e-3), r, dist, false)
         } else {
-            sky.radiance(p, r, self.time)
+            self.sky_radiance(r)
         };
         let puddle = calm < 0.5;
         // Body colour: deep green-blue for open water, muddy for puddles; a faint world-locked

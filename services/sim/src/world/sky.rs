@@ -47,28 +47,35 @@ impl Sky {
 
     /// Radiance seen along unit direction `d` from `o` at time `t`.
     pub fn radiance(&self, o: V3, d: V3, t: f32) -> V3 {
+        self.dome(o, d, t) + self.sun_term(d)
+    }
+
+    /// The sun disc and halo (sharp: evaluated per pixel, never cached).
+    #[inline]
+    pub fn sun_term(&self, d: V3) -> V3 {
+        let cos_sun = d.dot(&self.sun).max(0.0);
+        let halo = pow8(cos_sun) * pow8(cos_sun);
+        let disc = if cos_sun > 0.99985 { 8.0 } else { 0.0 };
+        self.sun_color * (0.35 * halo + disc)
+    }
+
+    /// Gradient and clouds without the sun (smooth: cacheable per direction).
+    pub fn dome(&self, o: V3, d: V3, t: f32) -> V3 {
         let up = d.z.max(0.0);
         let mut c = mix(self.horizon, self.zenith, up.sqrt());
-        let cos_sun = d.dot(&self.sun);
-        // Halo around the sun, then the disc (0.27 deg radius, widened a little to be visible).
-        let halo = pow8(cos_sun.max(0.0)) * pow8(cos_sun.max(0.0));
-        c += self.sun_color * (0.35 * halo);
-        if cos_sun > 0.99985 {
-            c += self.sun_color * 8.0;
-        }
         if d.z > 0.005 && self.cloud_cover > 0.0 {
             let s = (self.cloud_height - o.z) / d.z;
             let x = o.x + d.x * s + self.cloud_wind[0] * t;
             let y = o.y + d.y * s + self.cloud_wind[1] * t;
             // Cloud footprint grows with distance; the fbm drops octaves it cannot resolve.
-            let n = fbm2(x, y, 900.0, 5, s * 0.002, self.seed);
+            let n = fbm2(x, y, 900.0, 5, s * 0.004, self.seed);
             let cover = smoothstep(
                 1.0 - self.cloud_cover * 0.75 - 0.2,
                 1.0 - self.cloud_cover * 0.75 + 0.15,
                 n,
             );
             let fade = smoothstep(0.005, 0.12, d.z);
-            let shade = 0.75 + 0.35 * (n - 0.5) + 0.2 * cos_sun.max(0.0);
+            let shade = 0.75 + 0.35 * (n - 0.5) + 0.2 * d.dot(&self.sun).max(0.0);
             let cloud = v3(0.92, 0.92, 0.95) * shade;
             c = mix(c, cloud, cover * fade);
         }

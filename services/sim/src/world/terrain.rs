@@ -1,11 +1,15 @@
 //! Terrain as a regular heightfield, generated once from the scenario and ray-marched per pixel.
 //!
-//! Marching uses a conservative step: with the heightfield's largest slope `L`, a ray at height `dz`
+//! Rays walk the grid in blocks and skip blocks whose highest point is below them. Inside a block,
+//! marching uses a conservative step: with the block's largest slope `L`, a ray at height `dz`
 //! above the ground cannot reach it in less than `dz / (L |d_xy| - d_z)`. Far away the step is floored
 //! at a fraction of the pixel footprint, then the crossing is refined by false position.
 
 use crate::math::{smoothstep, v3, V3};
 use crate::noise::fbm2;
+
+/// Cells per side of a skip block.
+const BLOCK: usize = 8;
 
 /// How the land is shaped.
 #[derive(Clone, Debug)]
@@ -55,8 +59,14 @@ pub struct Terrain {
     h: Vec<f32>,
     pub h_min: f32,
     pub h_max: f32,
-    /// Largest slope of the grid (rise over run), for conservative marching.
-    lipschitz: f32,
+    /// Highest node of each block of `BLOCK` x `BLOCK` cells (edges shared with neighbours): rays
+    /// above a block's maximum skip it without sampling the heightfield.
+    block_max: Vec<f32>,
+    /// Largest slope inside each block (rise over run, with the diagonal margin): marching takes
+    /// long steps over gentle ground even when some other place is steep.
+    block_slope: Vec<f32>,
+    bnx: usize,
+    bny: usize,
     /// Trail polyline and half width (ground worlds), for texturing and labels.
     trail: Option<(Vec<[f32; 2]>, f32)>,
     /// Depth below which banks look like sand/mud rather than grass (maritime worlds).
@@ -97,7 +107,10 @@ impl Terrain {
             h,
             h_min: 0.0,
             h_max: 0.0,
-            lipschitz: 0.0,
+            block_max: Vec::new(),
+            block_slope: Vec::new(),
+            bnx: 0,
+            bny: 0,
             trail,
             maritime: !matches!(p.shape, TerrainShape::Ground { .. }),
             seed,
@@ -109,20 +122,35 @@ impl Terrain {
     fn update_bounds(&mut self) {
         self.h_min = self.h.iter().copied().fold(f32::MAX, f32::min);
         self.h_max = self.h.iter().copied().fold(f32::MIN, f32::max) + 0.01;
-        let mut l: f32 = 0.0;
-        for j in 0..self.ny {
-            for i in 0..self.nx {
-                let a = self.h[j * self.nx + i];
-                if i + 1 < self.nx {
-                    l = l.max((self.h[j * self.nx + i + 1] - a).abs());
+        self.bnx = (self.nx - 1).div_ceil(BLOCK).max(1);
+        self.bny = (self.ny - 1).div_ceil(BLOCK).max(1);
+        self.block_max.clear();
+        self.block_slope.clear();
+        for bj in 0..self.bny {
+            for bi in 0..self.bnx {
+                let (mut m, mut l) = (f32::MIN, 0.0f32);
+                let (i1, j1) = (
+                    ((bi + 1) * BLOCK).min(self.nx - 1),
+                    ((bj + 1) * BLOCK).min(self.ny - 1),
+                );
+                for j in bj * BLOCK..=j1 {
+                    for i in bi * BLOCK..=i1 {
+                        let a = self.h[j * self.nx + i];
+                        m = m.max(a);
+                        if i < i1 {
+                            l = l.max((self.h[j * self.nx + i + 1] - a).abs());
+                        }
+                        if j < j1 {
+                            l = l.max((self.h[(j + 1) * self.nx + i] - a).abs());
+                        }
+                    }
                 }
-                if j + 1 < self.ny {
-                    l = l.max((self.h[(j + 1) * self.nx + i] - a).abs());
-                }
+                self.block_max.push(m);
+                // Bilinear patches can be steeper along a diagonal than along the axes.
+                self.block_slope
+                    .push(l / self.cell * std::f32::consts::SQRT_2 + 1e-3);
             }
         }
-        // Bilinear patches can be steeper along a diagonal than along the axes: sqrt(2) margin.
-        self.lipschitz = l / self.cell * std::f32::consts::SQRT_2 + 1e-3;
     }
 
     /// Lowers the ground inside a disc so a flat water surface at the returned elevation covers it:
@@ -224,39 +252,90 @@ impl Terrain {
         if t0 >= t1 {
             return None;
         }
-        let dxy = d.x.hypot(d.y);
-        let closing = self.lipschitz * dxy - d.z;
+        // Walk the blocks the ray crosses (2-D DDA); march finely only where it can hit.
+        let bs = self.cell * BLOCK as f32;
+        let p = o + d * t0;
+        let clampi = |v: f32, n: usize| (v.floor().max(0.0) as usize).min(n - 1);
+        let (mut bi, mut bj) = (
+            clampi((p.x - self.x0) / bs, self.bnx),
+            clampi((p.y - self.y0) / bs, self.bny),
+        );
+        let axis = |o: f32, d: f32, origin: f32, b: usize| -> (f32, f32) {
+            if d.abs() < 1e-12 {
+                (f32::MAX, f32::MAX)
+            } else {
+                let edge = origin + (b + usize::from(d > 0.0)) as f32 * bs;
+                ((edge - o) / d, bs / d.abs())
+            }
+        };
+        let (mut tx, dtx) = axis(o.x, d.x, self.x0, bi);
+        let (mut ty, dty) = axis(o.y, d.y, self.y0, bj);
+        let mut ta = t0;
+        loop {
+            let tb = tx.min(ty).min(t1).max(ta);
+            let zmin = o.z + d.z * if d.z < 0.0 { tb } else { ta };
+            if zmin <= self.block_max[bj * self.bnx + bi] {
+                let slope = self.block_slope[bj * self.bnx + bi];
+                if let Some(t) = self.march(o, d, ta, tb, slope, pix) {
+                    return Some(t);
+                }
+            }
+            if tb >= t1 {
+                return None;
+            }
+            if tx < ty {
+                if d.x > 0.0 {
+                    bi += 1
+                } else if bi == 0 {
+                    return None;
+                } else {
+                    bi -= 1
+                }
+                tx += dtx;
+            } else {
+                if d.y > 0.0 {
+                    bj += 1
+                } else if bj == 0 {
+                    return None;
+                } else {
+                    bj -= 1
+                }
+                ty += dty;
+            }
+            if bi >= self.bnx || bj >= self.bny {
+                return None;
+            }
+            ta = tb;
+        }
+    }
+
+    /// Conservative march over `[ta, tb]`, then refinement of the first crossing.
+    fn march(&self, o: V3, d: V3, ta: f32, tb: f32, slope: f32, pix: f32) -> Option<f32> {
+        let closing = slope * (d.x * d.x + d.y * d.y).sqrt() - d.z;
         let above = |t: f32| {
             let p = o + d * t;
             p.z - self.height(p.x, p.y)
         };
-        let mut t = t0;
-        let mut prev = (t, above(t));
+        let mut prev = (ta, above(ta));
         if prev.1 < 0.0 {
-            return Some(t0); // starts below ground (camera inside a hill): report the entry
+            return Some(ta); // starts below ground (camera inside a hill): report the entry
         }
-        for _ in 0..512 {
-            let dz = prev.1;
+        loop {
             let safe = if closing > 1e-6 {
-                dz / closing
+                prev.1 / closing
             } else {
                 f32::MAX
             };
-            let step = safe.max(0.02 + 0.5 * pix * t).min(t1 - t0 + 1.0);
-            t = prev.0 + step;
-            if t > t1 {
-                t = t1;
-            }
+            let t = (prev.0 + safe.max(0.02 + 0.5 * pix * prev.0)).min(tb);
             let dz = above(t);
             if dz < 0.0 {
                 return Some(refine(prev, (t, dz), above));
             }
-            if t >= t1 {
+            if t >= tb {
                 return None;
             }
             prev = (t, dz);
         }
-        None
     }
 }
 
@@ -308,11 +387,13 @@ fn base_height(
         }
         TerrainShape::Ground { trail_width, .. } => {
             let low = relief * rough(90.0);
-            let bumps = 0.12 * rough(3.0);
+            // Small bumps, band-limited (footprint 0.4 m drops the finest octaves) so slopes stay
+            // moderate and marching takes long steps.
+            let bumps = 0.12 * (fbm2(x, y, 3.0, 4, 0.4, seed ^ 0xb) - 0.5) * 2.0;
             let d = polyline_distance(line, x, y);
             // The trail is the low-frequency ground, flattened and slightly worn in.
             let w = 1.0 - smoothstep(trail_width / 2.0, trail_width / 2.0 + 2.5, d);
-            let trail_h = low - 0.06 + 0.02 * rough(1.5);
+            let trail_h = low - 0.06;
             (low + bumps) * (1.0 - w) + trail_h * w
         }
     }

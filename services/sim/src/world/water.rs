@@ -3,7 +3,7 @@
 //! Waves perturb only the surface normal (the geometry stays a plane), which is enough to shape
 //! reflections and sun glint while keeping ground truth simple: water elevation is exact.
 
-use crate::math::{v3, V3};
+use crate::math::{fast_cos, v3, V3};
 use crate::noise::Rng;
 
 /// One directional sine wave: h = amp * sin(k . p - omega t + phase).
@@ -61,7 +61,7 @@ impl Waves {
                 // Components are ordered long to short: all later ones are finer still.
                 break;
             }
-            let s = c.amp * w * (c.kx * x + c.ky * y - c.omega * t + c.phase).cos();
+            let s = c.amp * w * fast_cos(c.kx * x + c.ky * y - c.omega * t + c.phase);
             gx += s * c.kx;
             gy += s * c.ky;
         }
