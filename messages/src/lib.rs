@@ -25,6 +25,7 @@ mod fixed;
 mod header;
 mod health;
 mod maps;
+pub mod recording;
 mod sensor;
 mod stereo;
 pub mod summary;

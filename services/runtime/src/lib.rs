@@ -19,7 +19,7 @@ mod service;
 mod shutdown;
 
 pub use health::Health;
-pub use pubsub::{Pod, Publisher, Receive, Subscriber};
+pub use pubsub::{Pod, PublishRaw, Publisher, Receive, Subscriber};
 pub use service::{tool_node, Input, Ports, Service, Wake};
 pub use shutdown::Shutdown;
 

@@ -356,3 +356,79 @@ impl<T: Pod, H: ZeroCopySend + Debug> Subscriber<[T], H> {
         Self::from_factory(node, &name, factory, topic.name)
     }
 }
+
+/// Publishing a message given as the raw bytes of its user header and payload, as a recording holds
+/// them (see `messages::recording`): replay republishes exactly the recorded bytes. One trait for
+/// fixed-size and slice topics so a replayer can keep one publisher per topic behind `dyn`.
+pub trait PublishRaw {
+    fn topic(&self) -> &'static str;
+    /// `header` must be one user header and `payload` one payload (a whole number of elements for
+    /// slices); other lengths are an error. Returns how many subscribers received it.
+    fn publish_raw(&mut self, header: &[u8], payload: &[u8]) -> anyhow::Result<usize>;
+}
+
+fn check_len(topic: &str, what: &str, got: usize, want: usize) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        got == want,
+        "{topic}: recorded {what} has {got} bytes, this build's type has {want}"
+    );
+    Ok(())
+}
+
+/// Copies `bytes` over the memory of `target`.
+///
+/// # Safety
+/// `target` must be exactly `bytes.len()` bytes long, and every bit pattern must be a valid value of
+/// it: true of the contract's plain-data types (integers, floats, fixed strings; enums are stored as
+/// integers for this reason).
+unsafe fn overwrite<T: ?Sized>(target: &mut T, bytes: &[u8]) {
+    std::ptr::copy_nonoverlapping(bytes.as_ptr(), target as *mut T as *mut u8, bytes.len());
+}
+
+impl<P: ZeroCopySend + Debug + Copy, H: ZeroCopySend + Debug + Default> PublishRaw
+    for Publisher<P, H>
+{
+    fn topic(&self) -> &'static str {
+        self.topic
+    }
+
+    fn publish_raw(&mut self, header: &[u8], payload: &[u8]) -> anyhow::Result<usize> {
+        check_len(self.topic, "user header", header.len(), size_of::<H>())?;
+        check_len(self.topic, "payload", payload.len(), size_of::<P>())?;
+        let mut sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| anyhow::anyhow!("loan on {} failed: {e:?}", self.topic))?;
+        // SAFETY: lengths checked above; contract types accept every bit pattern (see `overwrite`).
+        let sample = unsafe {
+            overwrite(sample.user_header_mut(), header);
+            overwrite(sample.payload_mut(), payload);
+            sample.assume_init()
+        };
+        self.send(sample)
+    }
+}
+
+impl<T: Pod, H: ZeroCopySend + Debug + Default> PublishRaw for Publisher<[T], H> {
+    fn topic(&self) -> &'static str {
+        self.topic
+    }
+
+    fn publish_raw(&mut self, header: &[u8], payload: &[u8]) -> anyhow::Result<usize> {
+        check_len(self.topic, "user header", header.len(), size_of::<H>())?;
+        let elem = size_of::<T>();
+        anyhow::ensure!(
+            payload.len() % elem == 0,
+            "{}: recorded payload of {} bytes is not a whole number of {elem}-byte elements",
+            self.topic,
+            payload.len()
+        );
+        let mut sample = self.loan_slice(payload.len() / elem)?;
+        // SAFETY: lengths checked above; contract types accept every bit pattern (see `overwrite`).
+        unsafe {
+            overwrite(sample.user_header_mut(), header);
+            overwrite(sample.payload_mut(), payload);
+        }
+        self.send(sample)
+    }
+}
