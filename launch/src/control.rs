@@ -34,6 +34,11 @@ pub struct ServiceStatus {
     /// Inputs processed per second over the last few seconds (from heartbeats).
     pub input_rate_hz: Option<f64>,
     pub processed: u64,
+    pub rejected: u64,
+    pub errors: u64,
+    /// Processing time of the last input and the worst so far (us), from heartbeats.
+    pub last_processing_us: Option<u32>,
+    pub max_processing_us: Option<u32>,
     pub last_error: String,
     pub program: String,
 }

@@ -3,6 +3,7 @@
 mod bench;
 mod child;
 mod control;
+mod demo;
 mod inspect;
 mod launchfile;
 mod supervisor;
@@ -29,6 +30,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
+    /// Run the demo: the demo process set on a simulated scenario, then a summary.
+    Demo(demo::DemoArgs),
     /// Start a process set from a launch file and supervise it until `usv down` or Ctrl-C.
     Up { set: PathBuf },
     /// Stop the running set: SIGTERM, grace period, SIGKILL, then sweep stale shared memory.
@@ -117,6 +120,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let set = launchfile::ProcessSet::load(&set)?;
             supervisor::Supervisor::new(set, domain.clone()).run()
         }
+        Cmd::Demo(args) => demo::run(args),
         Cmd::Down => print_reply(call(Request::Down)?),
         Cmd::Ps { json } => match call(Request::Ps)? {
             Reply::Ps { set, services } if json => {

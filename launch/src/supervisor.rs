@@ -44,6 +44,8 @@ struct Running {
 
 struct Managed {
     spec: ServiceSpec,
+    /// Newest heartbeat of any process of this service (kept after it exits, for the record).
+    last_beat: Option<Heartbeat>,
     running: Option<Running>,
     after_exit: AfterExit,
     restarts: u32,
@@ -68,17 +70,22 @@ impl Managed {
 
     fn status(&self, now: Instant) -> ServiceStatus {
         let r = self.running.as_ref();
-        let beat = r.and_then(|r| r.last_beat.as_ref());
+        let beat_time = r.and_then(|r| r.last_beat.as_ref()).map(|(t, _)| *t);
+        let beat = self.last_beat.as_ref();
         ServiceStatus {
             name: self.spec.name.clone(),
             pid: r.map(|r| r.pid),
             state: self.state(),
             restarts: self.restarts,
-            heartbeat_age_ms: beat.map(|(t, _)| now.duration_since(*t).as_millis() as u64),
+            heartbeat_age_ms: beat_time.map(|t| now.duration_since(t).as_millis() as u64),
             input_rate_hz: r.and_then(|r| input_rate(&r.rate_samples)),
-            processed: beat.map_or(0, |(_, b)| b.processed),
+            processed: beat.map_or(0, |b| b.processed),
+            rejected: beat.map_or(0, |b| b.rejected),
+            errors: beat.map_or(0, |b| b.errors),
+            last_processing_us: beat.map(|b| b.last_processing_us),
+            max_processing_us: beat.map(|b| b.max_processing_us),
             last_error: beat
-                .map(|(_, b)| b.last_error.as_str().to_string())
+                .map(|b| b.last_error.as_str().to_string())
                 .unwrap_or_default(),
             program: self.spec.program.display().to_string(),
         }
@@ -106,6 +113,7 @@ impl Supervisor {
             .iter()
             .map(|spec| Managed {
                 spec: spec.clone(),
+                last_beat: None,
                 running: None,
                 after_exit: AfterExit::Policy,
                 restarts: 0,
@@ -306,6 +314,7 @@ impl Supervisor {
             return;
         };
         r.last_beat = Some((now, *beat));
+        m.last_beat = Some(*beat);
         r.rate_samples.push_back((now, beat.processed));
         while r
             .rate_samples

@@ -2,14 +2,16 @@
 //! service has finished frame k. "Finished" is read from heartbeats: a service reports the stamp of the
 //! newest primary input it has processed or rejected (`Heartbeat::last_input_stamp_ns`), and stamps
 //! are copied unchanged down the pipeline, so one number per service says how far it got.
+//!
+//! The source owns the heartbeat subscriber (so it can wait on it in `Service::run`) and feeds what
+//! arrives to [`LockStep::observe`].
 
-use crate::{Service, Shutdown, Subscriber};
-use messages::{topics, Heartbeat};
+use crate::{Shutdown, Subscriber};
+use messages::Heartbeat;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 pub struct LockStep {
-    heartbeats: Subscriber<Heartbeat, ()>,
     /// Service name -> newest stamp it reported done.
     done: BTreeMap<String, u64>,
     /// Frames for which the wait ran out (a service dropped the frame or died).
@@ -27,31 +29,29 @@ pub enum Step {
 }
 
 impl LockStep {
-    /// Waits on the named services (the pipeline downstream of the source).
-    pub fn new(service: &Service, pipeline: &[String]) -> anyhow::Result<Self> {
-        Ok(Self {
-            heartbeats: service.subscriber(&topics::HEARTBEAT)?,
+    /// Paces on the named services (the pipeline downstream of the source).
+    pub fn new(pipeline: &[String]) -> Self {
+        Self {
             done: pipeline.iter().map(|s| (s.clone(), 0)).collect(),
             timeouts: 0,
-        })
+        }
     }
 
     pub fn services(&self) -> impl Iterator<Item = &str> {
         self.done.keys().map(String::as_str)
     }
 
-    /// The heartbeat subscriber, to wait on it in `Service::run` (`lockstep.heartbeats().input(..)`).
-    pub fn heartbeats(&self) -> &Subscriber<Heartbeat, ()> {
-        &self.heartbeats
+    /// Takes note of one heartbeat (others' heartbeats are ignored).
+    pub fn observe(&mut self, beat: &Heartbeat) {
+        if let Some(done) = self.done.get_mut(beat.hdr.source.as_str()) {
+            *done = (*done).max(beat.last_input_stamp_ns);
+        }
     }
 
-    /// Reads the heartbeats that arrived since the last call.
-    pub fn update(&mut self) -> anyhow::Result<()> {
-        while let Some(sample) = self.heartbeats.receive()? {
-            let beat = sample.payload();
-            if let Some(done) = self.done.get_mut(beat.hdr.source.as_str()) {
-                *done = (*done).max(beat.last_input_stamp_ns);
-            }
+    /// Feeds every heartbeat waiting in `heartbeats` to [`LockStep::observe`].
+    pub fn update(&mut self, heartbeats: &Subscriber<Heartbeat, ()>) -> anyhow::Result<()> {
+        while let Some(sample) = heartbeats.receive()? {
+            self.observe(sample.payload());
         }
         Ok(())
     }
@@ -71,15 +71,17 @@ impl LockStep {
     }
 
     /// Blocks until every pipeline service reported `stamp_ns` done, `timeout` passes, or shutdown.
+    /// For sources without a wait loop of their own (a replay tool); services use `observe`.
     pub fn wait(
         &mut self,
+        heartbeats: &Subscriber<Heartbeat, ()>,
         stamp_ns: u64,
         timeout: Duration,
         shutdown: &Shutdown,
     ) -> anyhow::Result<Step> {
         let end = Instant::now() + timeout;
         loop {
-            self.update()?;
+            self.update(heartbeats)?;
             let missing = self.missing(stamp_ns);
             if missing.is_empty() {
                 return Ok(Step::Done);
@@ -91,9 +93,36 @@ impl LockStep {
                 self.timeouts += 1;
                 return Ok(Step::TimedOut(missing));
             }
-            // Heartbeats come right after a service finishes an input; a short sleep keeps this
-            // cheap without adding much to the frame period.
             std::thread::sleep(Duration::from_micros(200));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use messages::{Header, Heartbeat};
+
+    fn beat(source: &str, stamp: u64) -> Heartbeat {
+        Heartbeat {
+            hdr: Header::new(0, 0, source),
+            last_input_stamp_ns: stamp,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn done_only_when_every_pipeline_service_reported_the_stamp() {
+        let mut l = LockStep::new(&["stereo".into(), "perception".into()]);
+        assert!(!l.done(10));
+        l.observe(&beat("stereo", 10));
+        l.observe(&beat("recorder", 99));
+        assert_eq!(l.missing(10), ["perception"]);
+        l.observe(&beat("perception", 12));
+        assert!(l.done(10));
+        assert!(!l.done(11), "stereo has only reached 10");
+        // An older heartbeat arriving late does not move a service back.
+        l.observe(&beat("stereo", 5));
+        assert!(l.done(10));
     }
 }

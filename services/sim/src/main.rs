@@ -18,10 +18,16 @@ struct Cli {
 enum Command {
     /// Render one frame of a scenario to PNG files (offline, no IPC).
     Render(cmd::render::Args),
+    /// Run as the simulator service of a process set (the clock of a closed-loop run).
+    Run(cmd::run::Args),
+    /// Write a head's calibration for the stereo service.
+    Calib(cmd::calib::Args),
 }
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Render(args) => cmd::render::run(args),
+        Command::Run(args) => cmd::run::run(args),
+        Command::Calib(args) => cmd::calib::run(args),
     }
 }

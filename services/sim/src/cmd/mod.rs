@@ -1,1 +1,3 @@
+pub mod calib;
 pub mod render;
+pub mod run;

@@ -1,0 +1,211 @@
+//! `usv demo`: the whole process set of `launch/sets/demo.toml` on a built-in simulated scenario, in a
+//! domain of its own, until the simulator's scenario time is up; then a summary. The demo watches the
+//! set like any other tool: it subscribes to topics and asks the supervisor for `ps`.
+
+use crate::control::{self, Reply, Request, ServiceStatus};
+use messages::topics;
+use runtime::Ports;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args)]
+pub struct DemoArgs {
+    /// Launch file of the demo set (default: launch/sets/demo.toml of this checkout).
+    #[arg(long)]
+    set: Option<PathBuf>,
+    /// Directory for the log and outputs.
+    #[arg(long, default_value = "out/demo")]
+    out: PathBuf,
+    /// Give up after this many seconds of wall time.
+    #[arg(long, default_value_t = 900)]
+    timeout_s: u64,
+}
+
+/// The checkout's `launch/sets/demo.toml`: next to the build output (`<repo>/target/release/usv`) or
+/// under the current directory.
+fn default_set() -> anyhow::Result<PathBuf> {
+    let relative = Path::new("launch/sets/demo.toml");
+    let from_exe = std::env::current_exe()?
+        .ancestors()
+        .nth(3)
+        .map(|repo| repo.join(relative));
+    from_exe
+        .into_iter()
+        .chain([relative.to_path_buf()])
+        .find(|p| p.exists())
+        .ok_or_else(|| anyhow::anyhow!("launch/sets/demo.toml not found; pass --set"))
+}
+
+#[derive(Default)]
+struct Watch {
+    frames: u64,
+    frame_arrival: BTreeMap<u64, Instant>,
+    latencies_ms: Vec<f64>,
+    densities: Vec<f64>,
+    plane_heights: Vec<f64>,
+    disparities: u64,
+}
+
+pub fn run(args: DemoArgs) -> anyhow::Result<()> {
+    let set = match &args.set {
+        Some(p) => p.clone(),
+        None => default_set()?,
+    };
+    let parsed = crate::launchfile::ProcessSet::load(&set)?;
+    std::fs::create_dir_all(&args.out)?;
+    let domain = format!("demo{}", std::process::id());
+    let run_dir = std::env::temp_dir().join(format!("usv-demo-{}", std::process::id()));
+    std::env::set_var(runtime::domain::DOMAIN_ENV, &domain);
+    std::env::set_var("USV_RUN_DIR", &run_dir);
+    let log_path = args.out.join("usv.log");
+    let log = std::fs::File::create(&log_path)?;
+    println!(
+        "demo: set '{}' ({} services) from {}; logs in {}",
+        parsed.name,
+        parsed.services.len(),
+        set.display(),
+        log_path.display()
+    );
+    let mut supervisor = Command::new(std::env::current_exe()?)
+        .arg("up")
+        .arg(&set)
+        .stdout(log.try_clone()?)
+        .stderr(log)
+        .stdin(Stdio::null())
+        .spawn()?;
+
+    let result = watch(&domain, &args, &mut supervisor);
+    // Always take the set down, even when watching failed.
+    let down = control::call(Some(&domain), &Request::Down, Duration::from_secs(30));
+    let _ = supervisor.wait();
+    let _ = std::fs::remove_dir_all(&run_dir);
+    let (watch, services, wall) = result?;
+    down?;
+    print_summary(&parsed.name, &watch, &services, wall);
+    anyhow::ensure!(
+        watch.frames > 0 && watch.disparities > 0,
+        "the demo produced no frames or no disparity: see {}",
+        log_path.display()
+    );
+    Ok(())
+}
+
+fn ps(domain: &str) -> anyhow::Result<Vec<ServiceStatus>> {
+    match control::call(Some(domain), &Request::Ps, Duration::from_secs(5))? {
+        Reply::Ps { services, .. } => Ok(services),
+        other => anyhow::bail!("unexpected reply {other:?}"),
+    }
+}
+
+fn watch(
+    domain: &str,
+    args: &DemoArgs,
+    supervisor: &mut std::process::Child,
+) -> anyhow::Result<(Watch, Vec<ServiceStatus>, Duration)> {
+    let started = Instant::now();
+    let deadline = started + Duration::from_secs(args.timeout_s);
+    let node = runtime::tool_node("usv-demo")?;
+    let frames = topics::STEREO_FRAME.subscriber(&node)?;
+    let disparity = topics::DISPARITY.subscriber(&node)?;
+    let shutdown = runtime::Shutdown::install()?;
+    let mut w = Watch::default();
+    let mut last_report = Instant::now();
+    let mut services = Vec::new();
+    loop {
+        if let Some(status) = supervisor.try_wait()? {
+            anyhow::bail!("the supervisor exited early ({status})");
+        }
+        while let Some(seq) = frames.receive()?.map(|s| s.user_header().hdr.seq) {
+            w.frames += 1;
+            w.frame_arrival.insert(seq, Instant::now());
+        }
+        while let Some(sample) = disparity.receive()? {
+            let h = sample.user_header();
+            w.disparities += 1;
+            if let Some(t) = w.frame_arrival.remove(&h.frame_seq) {
+                w.latencies_ms.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            let valid = sample.payload().iter().filter(|d| d.is_finite()).count();
+            w.densities
+                .push(valid as f64 / sample.payload().len().max(1) as f64);
+            if h.plane.valid == 1 {
+                w.plane_heights.push(h.plane.camera_height_m);
+            }
+        }
+        // Frames whose disparity never came are not latency samples.
+        while w.frame_arrival.len() > 64 {
+            w.frame_arrival.pop_first();
+        }
+        if last_report.elapsed() >= Duration::from_secs(1) {
+            last_report = Instant::now();
+            if let Ok(s) = ps(domain) {
+                services = s;
+            }
+            println!(
+                "  {:>5.1} s  frames {:>4}  disparities {:>4}",
+                started.elapsed().as_secs_f64(),
+                w.frames,
+                w.disparities
+            );
+            let source_done = services
+                .iter()
+                .any(|s| s.name == "sim" && s.state.starts_with("stopped"));
+            if source_done {
+                break;
+            }
+        }
+        anyhow::ensure!(!shutdown.requested(), "interrupted");
+        anyhow::ensure!(Instant::now() < deadline, "the demo did not finish in time");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    Ok((w, services, started.elapsed()))
+}
+
+fn percentile(values: &[f64], q: f64) -> Option<f64> {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[((v.len() - 1) as f64 * q).round() as usize])
+}
+
+fn print_summary(set: &str, w: &Watch, services: &[ServiceStatus], wall: Duration) {
+    let fmt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |v| format!("{v:.1} {unit}"));
+    println!("\n== demo summary: set '{set}' ==");
+    println!(
+        "frames {}  disparities {}  wall time {:.1} s  throughput {:.2} frames/s",
+        w.frames,
+        w.disparities,
+        wall.as_secs_f64(),
+        w.disparities as f64 / wall.as_secs_f64()
+    );
+    println!(
+        "camera-to-disparity latency p50 {}  p99 {}",
+        fmt(percentile(&w.latencies_ms, 0.5), "ms"),
+        fmt(percentile(&w.latencies_ms, 0.99), "ms")
+    );
+    println!(
+        "disparity density median {}  water plane found in {}/{} frames, camera height median {}",
+        fmt(percentile(&w.densities, 0.5).map(|d| d * 100.0), "%"),
+        w.plane_heights.len(),
+        w.disparities,
+        fmt(percentile(&w.plane_heights, 0.5), "m")
+    );
+    println!(
+        "{:<12} {:>9} {:>8} {:>7} {:>12} {:>12}  state",
+        "service", "processed", "rejected", "errors", "last (ms)", "max (ms)"
+    );
+    for s in services {
+        let ms = |us: Option<u32>| us.map_or("-".into(), |u| format!("{:.1}", u as f64 / 1e3));
+        println!(
+            "{:<12} {:>9} {:>8} {:>7} {:>12} {:>12}  {}",
+            s.name,
+            s.processed,
+            s.rejected,
+            s.errors,
+            ms(s.last_processing_us),
+            ms(s.max_processing_us),
+            s.state
+        );
+    }
+}

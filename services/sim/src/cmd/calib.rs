@@ -1,0 +1,74 @@
+//! `sim calib`: writes a simulated head's calibration in the stereo service's format (OpenCV
+//! conventions: `X_r = R X_l + T`), and the left camera's mounting on the body as a `[mount]` table
+//! for the stereo service's configuration. The simulated heads are ideal rectified pairs, so
+//! distortion is zero and R is the identity.
+
+use anyhow::{Context, Result};
+use nalgebra::Vector3;
+use sim::Simulator;
+use std::fmt::Write;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// Stereo head name.
+    #[arg(long)]
+    head: String,
+    /// Output calibration file.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let sim = Simulator::from_file(&args.scenario)
+        .with_context(|| format!("loading {}", args.scenario.display()))?;
+    let index = sim
+        .world
+        .head_index(&args.head)
+        .with_context(|| format!("no head `{}` in the scenario", args.head))?;
+    let h = &sim.world.heads[index];
+    let f = h.focal_px();
+    let (cx, cy) = ((h.width as f64 - 1.0) / 2.0, (h.height as f64 - 1.0) / 2.0);
+    // The left camera sits half a baseline to the head's left (+y of the head frame).
+    let rot = h.mount.rotation();
+    let left = h.mount.position + rot * Vector3::new(0.0, h.baseline / 2.0, 0.0);
+    let (roll, pitch, yaw) = (h.mount.rpy[0], h.mount.rpy[1], h.mount.rpy[2]);
+    let mut text = String::new();
+    writeln!(
+        text,
+        "# Calibration of simulated head `{}` ({}).",
+        h.name, sim.world.name
+    )?;
+    writeln!(
+        text,
+        "# Written by `sim calib`; ideal rectified pair, baseline {} m.",
+        h.baseline
+    )?;
+    writeln!(
+        text,
+        "# Left camera on the body, for the stereo service config:"
+    )?;
+    writeln!(
+        text,
+        "# [mount] position = [{:.4}, {:.4}, {:.4}], roll_deg = {:.3}, pitch_deg = {:.3}, yaw_deg = {:.3}",
+        left.x,
+        left.y,
+        left.z,
+        roll.to_degrees(),
+        pitch.to_degrees(),
+        yaw.to_degrees()
+    )?;
+    writeln!(text, "width = {}\nheight = {}", h.width, h.height)?;
+    writeln!(
+        text,
+        "rotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\ntranslation = [{}, 0.0, 0.0]",
+        -h.baseline
+    )?;
+    for side in ["left", "right"] {
+        writeln!(text, "\n[{side}]\nfx = {f}\nfy = {f}\ncx = {cx}\ncy = {cy}")?;
+    }
+    std::fs::write(&args.out, text).with_context(|| format!("writing {}", args.out.display()))?;
+    Ok(())
+}
