@@ -179,7 +179,7 @@ impl<W: Write> Recording<W> {
         let stamp = hdr.stamp_ns;
         let subsample = entry.is_image
             && self.opts.image_view_every > 1
-            && (entry.stats.messages - 1) % self.opts.image_view_every as u64 != 0;
+            && !(entry.stats.messages - 1).is_multiple_of(self.opts.image_view_every as u64);
         if subsample {
             return Ok(());
         }

@@ -418,7 +418,7 @@ impl<T: Pod, H: ZeroCopySend + Debug + Default> PublishRaw for Publisher<[T], H>
         check_len(self.topic, "user header", header.len(), size_of::<H>())?;
         let elem = size_of::<T>();
         anyhow::ensure!(
-            payload.len() % elem == 0,
+            payload.len().is_multiple_of(elem),
             "{}: recorded payload of {} bytes is not a whole number of {elem}-byte elements",
             self.topic,
             payload.len()
