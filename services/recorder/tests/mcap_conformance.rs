@@ -129,9 +129,10 @@ fn mcap_crate_reads_every_compression() {
 }
 
 #[test]
-#[ignore = "benchmark: cargo test --release -p recorder --test mcap_conformance -- --ignored --nocapture"]
-fn bench_quick() {
-    for (name, value, unit) in recorder::bench::run(true) {
+#[ignore = "benchmark: cargo test --release -p recorder --test mcap_conformance -- --ignored --nocapture (BENCH_FULL=1 for the long run)"]
+fn bench() {
+    let quick = std::env::var_os("BENCH_FULL").is_none();
+    for (name, value, unit) in recorder::bench::run(quick) {
         println!("{name:<50} {value:>10.2} {unit}");
     }
 }
