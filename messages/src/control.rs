@@ -87,6 +87,16 @@ pub struct MissionCommand {
     pub text: [u8; MAX_MISSION_TEXT],
 }
 
+// By hand: iceoryx2 request-response needs `Debug`, and printing 16 KiB of text bytes helps nobody.
+impl std::fmt::Debug for MissionCommand {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MissionCommand")
+            .field("action", &self.action)
+            .field("text_len", &self.text_len)
+            .finish_non_exhaustive()
+    }
+}
+
 /// The sequencer's answer to a [`MissionCommand`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, ZeroCopySend)]

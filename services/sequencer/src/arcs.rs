@@ -1,0 +1,608 @@
+//! Arc-based avoidance as in R4SA: a fixed set of constant-curvature arcs, a lookup table computed
+//! once that maps each cell near the vessel to the arcs whose swept corridor covers it, and one pass
+//! over the map per cycle to find the blocked arcs.
+//!
+//! # Body-frame table, rotated lookups
+//! The world map is east/north aligned while the arcs live in the body frame. Instead of one table
+//! per heading bin, there is ONE table in the body frame and each hazard cell's offset is rotated into
+//! it. Reasons:
+//! - a heading-bin table quantizes heading: with 64 bins (5.6 deg) a point 40 m out moves up to 3.9 m
+//!   sideways, so every corridor would need that much extra margin; rotation is exact;
+//! - one table of 128-bit masks is ~0.5 MB (fits in L2); 64 of them would be ~40 MB;
+//! - the per-cycle cost stays one pass over the map: the pass only tests each cell's cost and
+//!   hazard (cheap, branch-predictable), and the rotation plus table lookup runs only for the few
+//!   cells that are hazards ([`ArcSet::collect_hazards`] then [`ArcSet::blocked`]).
+//!
+//! Rotation adds up to half a table cell diagonal of lookup error and a hazard may lie anywhere in its
+//! map cell; both are covered by sweeping each corridor one map-cell diagonal wider.
+
+use messages::{GridGeometry, MapCell};
+use serde::Deserialize;
+use std::f64::consts::PI;
+
+/// Arc set and what counts as an obstacle.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArcConfig {
+    /// Number of arcs, 1..=128 (the status message has 128 bits for the blocked set).
+    pub count: usize,
+    /// Look-ahead length of every arc (m).
+    pub length_m: f64,
+    /// Curvature of the hardest turn (1/m); arcs are spread evenly over [-max, +max]. Keep it within
+    /// what the boat can turn (about tan(max rudder) / turn length).
+    pub max_curvature: f64,
+    pub vessel_width_m: f64,
+    /// Clearance kept on each side of the hull.
+    pub safety_margin_m: f64,
+    /// Upper bound of the water current (m/s): the corridor widens by the drift it can cause while the
+    /// boat covers the arc at `reference_speed_mps`.
+    pub current_bound_mps: f64,
+    pub reference_speed_mps: f64,
+    /// A cell with cost >= this (and not "unknown") blocks.
+    pub lethal_cost: u8,
+    /// A cell with hazard probability >= this (0..=1) blocks.
+    pub hazard_threshold: f64,
+    /// Whether unobserved cells (cost 255) block. Off by default: most open water is never seen up
+    /// close, and the map marks what it saw.
+    pub unknown_is_blocked: bool,
+    /// The previous arc is kept while its goal error is within this much (rad) of the best arc's.
+    pub hysteresis_rad: f64,
+}
+
+impl Default for ArcConfig {
+    fn default() -> Self {
+        Self {
+            count: 64,
+            length_m: 40.0,
+            max_curvature: 0.05,
+            vessel_width_m: 3.0,
+            safety_margin_m: 2.0,
+            current_bound_mps: 1.0,
+            reference_speed_mps: 5.0,
+            lethal_cost: MapCell::LETHAL_COST,
+            hazard_threshold: 0.5,
+            unknown_is_blocked: false,
+            hysteresis_rad: 0.08,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ArcError {
+    #[error("arcs.count must be 1..={max}, got {0}", max = messages::MAX_ARCS)]
+    Count(usize),
+    #[error("arcs.{0} must be a positive finite number, got {1}")]
+    Positive(&'static str, f64),
+    #[error("arcs.{0} must be >= 0 and finite, got {1}")]
+    NonNegative(&'static str, f64),
+    #[error("grid resolution must be positive, got {0}")]
+    Resolution(f64),
+}
+
+impl ArcConfig {
+    pub fn validate(&self) -> Result<(), ArcError> {
+        if self.count == 0 || self.count > messages::MAX_ARCS {
+            return Err(ArcError::Count(self.count));
+        }
+        for (name, v) in [
+            ("length_m", self.length_m),
+            ("vessel_width_m", self.vessel_width_m),
+            ("reference_speed_mps", self.reference_speed_mps),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(ArcError::Positive(name, v));
+            }
+        }
+        for (name, v) in [
+            ("max_curvature", self.max_curvature),
+            ("safety_margin_m", self.safety_margin_m),
+            ("current_bound_mps", self.current_bound_mps),
+            ("hazard_threshold", self.hazard_threshold),
+            ("hysteresis_rad", self.hysteresis_rad),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(ArcError::NonNegative(name, v));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One arc in the body frame (x forward, y left), starting at the vessel heading forward.
+#[derive(Debug, Clone, Copy)]
+pub struct Arc {
+    /// 1/m, positive turns to port (left).
+    pub curvature: f64,
+    /// Arc length actually swept: the look-ahead, cut at a half circle so tight arcs do not curl
+    /// back over the vessel.
+    pub extent_m: f64,
+    /// Body-frame bearing of the arc's end point (rad, positive to port): the direction the arc
+    /// takes the boat, compared with the goal direction.
+    pub direction: f64,
+}
+
+impl Arc {
+    fn new(curvature: f64, length: f64) -> Self {
+        let extent_m = if curvature.abs() * length > PI {
+            PI / curvature.abs()
+        } else {
+            length
+        };
+        let end = Self::point(curvature, extent_m);
+        Self {
+            curvature,
+            extent_m,
+            direction: end[1].atan2(end[0]),
+        }
+    }
+
+    /// Body-frame point at arc length `s`.
+    pub fn point(curvature: f64, s: f64) -> [f64; 2] {
+        if curvature.abs() < 1e-9 {
+            [s, 0.0]
+        } else {
+            let a = curvature * s;
+            [a.sin() / curvature, (1.0 - a.cos()) / curvature]
+        }
+    }
+}
+
+/// Blocked arcs of one cycle, and on which side the hazards lie (to turn away when all are blocked).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Blocked {
+    /// Bit i set: arc i is blocked.
+    pub mask: u128,
+    /// Hazards inside the table to port (y > 0) and to starboard.
+    pub port: u32,
+    pub starboard: u32,
+}
+
+/// The arcs and their lookup table.
+pub struct ArcSet {
+    cfg: ArcConfig,
+    arcs: Vec<Arc>,
+    resolution: f64,
+    inv_resolution: f64,
+    /// Table cells from the vessel to each edge; the table is `2 * half` cells square.
+    half: i32,
+    side: usize,
+    /// Body-frame cell -> arcs whose corridor covers it. Row-major over (y, x).
+    lut: Vec<u128>,
+    /// Largest distance from the vessel at which any corridor reaches (m).
+    reach: f64,
+    hazard_u8: u8,
+}
+
+impl ArcSet {
+    /// Builds the arcs and the lookup table for maps of `resolution` (m per cell). Done once at start;
+    /// it costs a few milliseconds.
+    pub fn new(cfg: &ArcConfig, resolution: f64) -> Result<Self, ArcError> {
+        cfg.validate()?;
+        if !(resolution.is_finite() && resolution > 0.0) {
+            return Err(ArcError::Resolution(resolution));
+        }
+        let arcs: Vec<Arc> = (0..cfg.count)
+            .map(|i| {
+                let t = if cfg.count == 1 {
+                    0.0
+                } else {
+                    2.0 * i as f64 / (cfg.count - 1) as f64 - 1.0
+                };
+                Arc::new(t * cfg.max_curvature, cfg.length_m)
+            })
+            .collect();
+        // Obstacle anywhere in its map cell + lookup rounding: one cell diagonal in all.
+        let inflation = resolution * std::f64::consts::SQRT_2;
+        let half_width = |s: f64| {
+            cfg.vessel_width_m / 2.0
+                + cfg.safety_margin_m
+                + cfg.current_bound_mps * s / cfg.reference_speed_mps
+                + inflation
+        };
+        let reach = cfg.length_m + half_width(cfg.length_m);
+        let half = (reach / resolution).ceil() as i32 + 1;
+        let side = 2 * half as usize;
+        let mut set = Self {
+            cfg: cfg.clone(),
+            arcs,
+            resolution,
+            inv_resolution: 1.0 / resolution,
+            half,
+            side,
+            lut: vec![0; side * side],
+            reach,
+            hazard_u8: (cfg.hazard_threshold * 255.0).ceil().clamp(0.0, 255.0) as u8,
+        };
+        for a in 0..set.arcs.len() {
+            let arc = set.arcs[a];
+            // Discs every half cell along the arc: their union is the swept corridor.
+            let steps = (arc.extent_m / (0.5 * resolution)).ceil().max(1.0) as usize;
+            for n in 0..=steps {
+                let s = arc.extent_m * n as f64 / steps as f64;
+                set.stamp_disc(Arc::point(arc.curvature, s), half_width(s), 1u128 << a);
+            }
+        }
+        Ok(set)
+    }
+
+    fn stamp_disc(&mut self, centre: [f64; 2], radius: f64, bit: u128) {
+        let r = self.resolution;
+        let lo = |v: f64| (((v - radius) / r).floor() as i32 + self.half).max(0);
+        let hi = |v: f64| (((v + radius) / r).ceil() as i32 + self.half).min(self.side as i32 - 1);
+        for j in lo(centre[1])..=hi(centre[1]) {
+            let y = (j - self.half) as f64 * r + 0.5 * r;
+            for i in lo(centre[0])..=hi(centre[0]) {
+                let x = (i - self.half) as f64 * r + 0.5 * r;
+                if (x - centre[0]).powi(2) + (y - centre[1]).powi(2) <= radius * radius {
+                    self.lut[j as usize * self.side + i as usize] |= bit;
+                }
+            }
+        }
+    }
+
+    pub fn arcs(&self) -> &[Arc] {
+        &self.arcs
+    }
+
+    pub fn resolution(&self) -> f64 {
+        self.resolution
+    }
+
+    pub fn config(&self) -> &ArcConfig {
+        &self.cfg
+    }
+
+    /// The arc pointing closest to `bearing` (body frame), blocked or not.
+    pub fn nearest(&self, bearing: f64) -> usize {
+        (0..self.arcs.len())
+            .min_by(|&a, &b| {
+                let d = |i: usize| angle_diff(self.arcs[i].direction, bearing).abs();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap_or(0)
+    }
+
+    /// Mask with one bit per arc.
+    pub fn all(&self) -> u128 {
+        if self.arcs.len() == 128 {
+            u128::MAX
+        } else {
+            (1u128 << self.arcs.len()) - 1
+        }
+    }
+
+    /// Arcs whose corridor covers the body-frame point (x forward, y left).
+    pub fn arcs_at(&self, body: [f64; 2]) -> u128 {
+        let i = (body[0] * self.inv_resolution).floor() as i32 + self.half;
+        let j = (body[1] * self.inv_resolution).floor() as i32 + self.half;
+        if i < 0 || j < 0 || i >= self.side as i32 || j >= self.side as i32 {
+            return 0;
+        }
+        self.lut[j as usize * self.side + i as usize]
+    }
+
+    /// The one pass over the map: appends the east/north offsets (m, from the grid centre, which is
+    /// the vessel at the map stamp) of every obstacle cell within reach of the arcs. `out` is cleared
+    /// first and keeps its allocation. Cells that do not match the geometry are ignored.
+    pub fn collect_hazards(&self, grid: &GridGeometry, cells: &[MapCell], out: &mut Vec<[f32; 2]>) {
+        out.clear();
+        let (w, h) = (grid.width as usize, grid.height as usize);
+        if cells.len() != w * h || w == 0 {
+            return;
+        }
+        let r = grid.resolution_m;
+        let reach = self.reach + r;
+        let hazard = self.hazard_u8.max(1);
+        // The cost test as one compare: adding 1 wraps "unknown" (255) to 0 when it must not block;
+        // a limit of 256 blocks nothing.
+        let shift = u8::from(!self.cfg.unknown_is_blocked);
+        let limit = self.cfg.lethal_cost as u16 + shift as u16;
+        let obstacle =
+            |c: &MapCell| (c.cost.wrapping_add(shift) as u16 >= limit) | (c.hazard >= hazard);
+        let mut push = |cells: &[MapCell], first_col: usize, dy: f64| {
+            for (k, cell) in cells.iter().enumerate() {
+                if obstacle(cell) {
+                    let dx = ((first_col + k) as f64 + 0.5 - w as f64 / 2.0) * r;
+                    out.push([dx as f32, dy as f32]);
+                }
+            }
+        };
+        for (row, line) in cells.chunks_exact(w).enumerate() {
+            let dy = (row as f64 + 0.5 - h as f64 / 2.0) * r;
+            if dy.abs() > reach {
+                continue;
+            }
+            // Only this row's chord of the reach circle: ~30 % fewer cells on a square map.
+            let chord = (reach * reach - dy * dy).sqrt() / r;
+            let c0 = (w as f64 / 2.0 - chord).floor().max(0.0) as usize;
+            let c1 = ((w as f64 / 2.0 + chord).ceil() as usize).min(w);
+            // Obstacles are rare: test 16 cells at once by their largest hazard and cost (max
+            // reductions vectorize) and look at single cells only in a block that has one.
+            let blocks = line[c0..c1].chunks_exact(16);
+            let tail = blocks.remainder();
+            for (b, block) in blocks.enumerate() {
+                let (max_hazard, max_cost) = block.iter().fold((0u8, 0u8), |(h, k), c| {
+                    (h.max(c.hazard), k.max(c.cost.wrapping_add(shift)))
+                });
+                if max_hazard >= hazard || max_cost as u16 >= limit {
+                    push(block, c0 + 16 * b, dy);
+                }
+            }
+            push(tail, c1 - tail.len(), dy);
+        }
+    }
+
+    /// Blocked arcs for hazards given as offsets from `origin` (ENU, the map centre), with the vessel
+    /// now at `vessel` heading `yaw` (rad, counter-clockwise from east). Taking the vessel pose
+    /// separately lets the INS move it between maps.
+    pub fn blocked(
+        &self,
+        hazards: &[[f32; 2]],
+        origin: [f64; 2],
+        vessel: [f64; 2],
+        yaw: f64,
+    ) -> Blocked {
+        let (s, c) = yaw.sin_cos();
+        let (ox, oy) = (origin[0] - vessel[0], origin[1] - vessel[1]);
+        let mut out = Blocked::default();
+        for h in hazards {
+            let (dx, dy) = (h[0] as f64 + ox, h[1] as f64 + oy);
+            // World offset -> body frame (rotate by -yaw).
+            let body = [c * dx + s * dy, -s * dx + c * dy];
+            let arcs = self.arcs_at(body);
+            if arcs != 0 {
+                out.mask |= arcs;
+                if body[1] > 0.0 {
+                    out.port += 1;
+                } else {
+                    out.starboard += 1;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Picks the traversable arc closest to the goal direction, with hysteresis.
+#[derive(Debug, Default, Clone)]
+pub struct ArcChooser {
+    previous: Option<usize>,
+}
+
+impl ArcChooser {
+    /// `goal_bearing`: goal direction in the body frame (rad, positive to port). Returns the chosen
+    /// arc, or `None` when every arc is blocked.
+    pub fn choose(&mut self, set: &ArcSet, blocked: u128, goal_bearing: f64) -> Option<usize> {
+        let score = |a: &Arc| angle_diff(a.direction, goal_bearing).abs();
+        let free = |i: usize| blocked & (1u128 << i) == 0;
+        // Ties (arcs pointing the same way) go to the gentler curve.
+        let best = (0..set.arcs.len()).filter(|&i| free(i)).min_by(|&a, &b| {
+            let (sa, sb) = (score(&set.arcs[a]), score(&set.arcs[b]));
+            sa.total_cmp(&sb).then(
+                set.arcs[a]
+                    .curvature
+                    .abs()
+                    .total_cmp(&set.arcs[b].curvature.abs()),
+            )
+        });
+        let chosen = match (best, self.previous) {
+            (Some(b), Some(p))
+                if p < set.arcs.len()
+                    && free(p)
+                    && score(&set.arcs[p]) <= score(&set.arcs[b]) + set.cfg.hysteresis_rad =>
+            {
+                Some(p)
+            }
+            (b, _) => b,
+        };
+        self.previous = chosen;
+        chosen
+    }
+
+    pub fn reset(&mut self) {
+        self.previous = None;
+    }
+}
+
+/// `a - b` wrapped to [-pi, pi).
+pub fn angle_diff(a: f64, b: f64) -> f64 {
+    // floor instead of rem_euclid: no libm call, it runs a few hundred times per cycle.
+    let d = a - b;
+    d - std::f64::consts::TAU * ((d + PI) / std::f64::consts::TAU).floor()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(n: u32, res: f64) -> GridGeometry {
+        GridGeometry {
+            width: n,
+            height: n,
+            resolution_m: res,
+            center: [0.0, 0.0],
+        }
+    }
+
+    fn free_map(n: u32) -> Vec<MapCell> {
+        vec![MapCell::default(); (n * n) as usize]
+    }
+
+    fn put(map: &mut [MapCell], g: &GridGeometry, east: f64, north: f64) {
+        let (c, r) = g.cell_of(east, north).unwrap();
+        map[(r * g.width + c) as usize].cost = MapCell::LETHAL_COST;
+    }
+
+    /// Arcs with the smallest |curvature| (two for an even count).
+    fn straight_arcs(set: &ArcSet) -> Vec<usize> {
+        let min = set
+            .arcs()
+            .iter()
+            .map(|a| a.curvature.abs())
+            .fold(f64::MAX, f64::min);
+        (0..set.arcs().len())
+            .filter(|&i| set.arcs()[i].curvature.abs() <= min + 1e-12)
+            .collect()
+    }
+
+    #[test]
+    fn lut_marks_the_corridor_a_vessel_of_width_w_sweeps() {
+        let cfg = ArcConfig {
+            count: 1,
+            vessel_width_m: 4.0,
+            safety_margin_m: 0.0,
+            current_bound_mps: 0.0,
+            ..Default::default()
+        };
+        let res = 0.5;
+        let set = ArcSet::new(&cfg, res).unwrap();
+        let margin = res * std::f64::consts::SQRT_2;
+        // A single straight arc: cells within W/2 of the centreline are marked, with at most one cell
+        // diagonal of extra margin; cells beyond that are not.
+        for x in [1.0, 10.0, 39.0] {
+            for y in [-1.9, -1.0, 0.0, 1.0, 1.9] {
+                assert_eq!(set.arcs_at([x, y]), 1, "({x}, {y}) inside the hull width");
+            }
+            for y in [2.0 + margin + res, -(2.0 + margin + res)] {
+                assert_eq!(set.arcs_at([x, y]), 0, "({x}, {y}) outside");
+            }
+        }
+        assert_eq!(
+            set.arcs_at([40.0 + 2.0 + margin + res, 0.0]),
+            0,
+            "beyond the look-ahead"
+        );
+        // Safety margin and current bound widen it.
+        let wide = ArcSet::new(
+            &ArcConfig {
+                safety_margin_m: 1.0,
+                current_bound_mps: 1.0,
+                reference_speed_mps: 10.0,
+                ..cfg
+            },
+            res,
+        )
+        .unwrap();
+        assert_eq!(wide.arcs_at([5.0, 2.9]), 1, "margin");
+        assert_eq!(wide.arcs_at([5.0, 4.8]), 0);
+        assert_eq!(wide.arcs_at([38.0, 6.5]), 1, "drift of 3.8 m after 38 m");
+    }
+
+    #[test]
+    fn curved_arc_corridor_follows_the_curve() {
+        let cfg = ArcConfig {
+            count: 3,
+            max_curvature: 0.05,
+            ..Default::default()
+        };
+        let set = ArcSet::new(&cfg, 0.5).unwrap();
+        // Arc 2 turns to port: its point at s = 20 m is marked for it and not for the starboard arc.
+        let p = Arc::point(0.05, 20.0);
+        assert!(p[1] > 5.0);
+        assert_ne!(set.arcs_at(p) & 0b100, 0);
+        assert_eq!(set.arcs_at(p) & 0b001, 0);
+        assert!(set.arcs()[2].direction > 0.0 && set.arcs()[0].direction < 0.0);
+    }
+
+    #[test]
+    fn obstacle_dead_ahead_blocks_straight_arcs_and_the_choice_turns_away() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let g = grid(200, 0.5);
+        let mut map = free_map(200);
+        // A buoy 20 m ahead of a vessel heading north (yaw = pi/2).
+        for (e, n) in [(0.0, 20.0), (0.5, 20.0), (-0.5, 20.0), (0.0, 20.5)] {
+            put(&mut map, &g, e, n);
+        }
+        let mut hazards = Vec::new();
+        set.collect_hazards(&g, &map, &mut hazards);
+        assert_eq!(hazards.len(), 4);
+        let yaw = PI / 2.0;
+        let b = set.blocked(&hazards, g.center, [0.0, 0.0], yaw);
+        for s in straight_arcs(&set) {
+            assert_ne!(b.mask & (1 << s), 0, "straight arc {s} blocked");
+        }
+        assert_ne!(b.mask, set.all(), "some arcs free");
+        let mut chooser = ArcChooser::default();
+        let chosen = chooser.choose(&set, b.mask, 0.0).unwrap();
+        assert_eq!(b.mask & (1 << chosen), 0);
+        assert!(set.arcs()[chosen].direction.abs() > 0.05, "turns away");
+        // The same obstacle behind the vessel blocks nothing.
+        let b = set.blocked(&hazards, g.center, [0.0, 0.0], -PI / 2.0);
+        assert_eq!(b.mask, 0);
+    }
+
+    #[test]
+    fn a_blocked_arc_is_never_chosen() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let mut chooser = ArcChooser::default();
+        // Pseudo-random masks and goals, including the previous arc becoming blocked.
+        let mut x: u64 = 0x1234_5678_9abc_def1;
+        for _ in 0..2000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let mask = ((x as u128) << 64 | x.rotate_left(17) as u128) & set.all();
+            let goal = ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * PI;
+            match chooser.choose(&set, mask, goal) {
+                Some(a) => assert_eq!(mask & (1 << a), 0),
+                None => assert_eq!(mask, set.all()),
+            }
+        }
+        assert_eq!(chooser.choose(&set, set.all(), 0.0), None);
+    }
+
+    #[test]
+    fn hysteresis_keeps_the_previous_arc_for_small_goal_changes() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let mut chooser = ArcChooser::default();
+        let a = chooser.choose(&set, 0, 0.2).unwrap();
+        let spacing = (set.arcs()[1].direction - set.arcs()[0].direction).abs();
+        // Half an arc spacing further: same arc.
+        assert_eq!(chooser.choose(&set, 0, 0.2 + spacing * 0.6), Some(a));
+        // Far away: switches.
+        assert_ne!(chooser.choose(&set, 0, -0.5), Some(a));
+    }
+
+    #[test]
+    fn unknown_cells_block_only_when_configured_and_hazard_threshold_applies() {
+        let g = grid(100, 0.5);
+        let mut map = free_map(100);
+        let (c, r) = g.cell_of(10.0, 0.0).unwrap();
+        map[(r * 100 + c) as usize].cost = MapCell::UNKNOWN_COST;
+        let (c, r) = g.cell_of(0.0, 10.0).unwrap();
+        map[(r * 100 + c) as usize].hazard = 200;
+        let mut out = Vec::new();
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        set.collect_hazards(&g, &map, &mut out);
+        assert_eq!(out, vec![[0.25, 10.25]]);
+        let strict = ArcSet::new(
+            &ArcConfig {
+                unknown_is_blocked: true,
+                hazard_threshold: 0.9,
+                ..Default::default()
+            },
+            0.5,
+        )
+        .unwrap();
+        strict.collect_hazards(&g, &map, &mut out);
+        assert_eq!(out, vec![[10.25, 0.25]]);
+    }
+
+    #[test]
+    fn invalid_config_is_an_error() {
+        let bad = ArcConfig {
+            count: 129,
+            ..Default::default()
+        };
+        assert_eq!(ArcSet::new(&bad, 0.5).err(), Some(ArcError::Count(129)));
+        let bad = ArcConfig {
+            length_m: -1.0,
+            ..Default::default()
+        };
+        assert!(ArcSet::new(&bad, 0.5)
+            .err()
+            .unwrap()
+            .to_string()
+            .contains("length_m"));
+    }
+}

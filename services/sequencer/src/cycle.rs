@@ -1,0 +1,385 @@
+//! The sequencer as one deterministic object: inputs go in as they arrive, a cycle turns the newest
+//! of them into one actuator command and one status. No clock and no I/O: "now" is the newest input
+//! stamp, so the same inputs always give the same outputs.
+
+use crate::arcs::{angle_diff, ArcChooser, ArcConfig, ArcError, ArcSet};
+use crate::control::{self, ControlConfig, Controller, Guidance, OwnState};
+use crate::mission::{Directive, Mission, MissionError, Runner, World};
+use crate::watchdog::{self, Watchdog, WatchdogConfig};
+use messages::{
+    command_mode, mission_action, ActuatorCommand, ContactList, FixedStr, Header, InsState,
+    MapCell, MissionReply, SequencerStatus, WorldMapHeader,
+};
+use serde::Deserialize;
+
+/// Which input starts a cycle (the binary's wait loop reads this).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum CycleOn {
+    /// Every world map: commands at the map rate, one per map, which is what a lock-step source
+    /// waits for. Deterministic in replay.
+    #[default]
+    Map,
+    /// Every INS sample (faster control; the newest map's hazards are re-rotated each time).
+    Ins,
+}
+
+/// Service configuration (`sequencer run --config FILE`). Every section and field is optional.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub cycle_on: CycleOn,
+    /// Period of the tick that polls the mission service (ms).
+    pub tick_ms: u64,
+    /// Wall-clock gap after which a silent input counts as stale even when stream time stands still
+    /// (all inputs stopped), ms.
+    pub input_deadline_ms: u64,
+    /// Map resolution the arc table is built for at start; a map with another resolution rebuilds it.
+    pub map_resolution_m: f64,
+    pub arcs: ArcConfig,
+    pub control: ControlConfig,
+    pub watchdog: WatchdogConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            cycle_on: CycleOn::Map,
+            tick_ms: 20,
+            input_deadline_ms: 1000,
+            map_resolution_m: 0.5,
+            arcs: ArcConfig::default(),
+            control: ControlConfig::default(),
+            watchdog: WatchdogConfig::default(),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SetupError {
+    #[error(transparent)]
+    Arcs(#[from] ArcError),
+    #[error("{0}")]
+    Control(String),
+}
+
+/// Why an input was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum InputError {
+    #[error("INS sample {seq}: {reason}")]
+    Ins { seq: u64, reason: &'static str },
+    #[error("world map {seq}: {cells} cells for a {width}x{height} grid")]
+    MapSize {
+        seq: u64,
+        cells: usize,
+        width: u32,
+        height: u32,
+    },
+    #[error("world map {seq}: invalid resolution {resolution}")]
+    MapResolution { seq: u64, resolution: f64 },
+}
+
+pub struct Sequencer {
+    cfg: Config,
+    arcs: ArcSet,
+    chooser: ArcChooser,
+    /// Obstacle offsets of the newest map, from `map_origin`.
+    hazards: Vec<[f32; 2]>,
+    map_origin: [f64; 2],
+    ins: Option<InsState>,
+    contacts: Box<ContactList>,
+    watchdog: Watchdog,
+    runner: Runner,
+    controller: Controller,
+    last_cycle_ns: Option<u64>,
+    blocked_since_ns: Option<u64>,
+}
+
+impl Sequencer {
+    /// Validates the configuration and builds the arc table (the one expensive step).
+    pub fn new(cfg: Config) -> Result<Self, SetupError> {
+        cfg.control.validate().map_err(SetupError::Control)?;
+        let arcs = ArcSet::new(&cfg.arcs, cfg.map_resolution_m)?;
+        Ok(Self {
+            arcs,
+            chooser: ArcChooser::default(),
+            hazards: Vec::new(),
+            map_origin: [0.0; 2],
+            ins: None,
+            contacts: Box::default(),
+            watchdog: Watchdog::new(&cfg.watchdog),
+            runner: Runner::new(cfg.control.max_speed_mps),
+            controller: Controller::default(),
+            last_cycle_ns: None,
+            blocked_since_ns: None,
+            cfg,
+        })
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    pub fn arcs(&self) -> &ArcSet {
+        &self.arcs
+    }
+
+    pub fn runner(&self) -> &Runner {
+        &self.runner
+    }
+
+    /// Stream time: the newest input stamp.
+    pub fn now(&self) -> u64 {
+        self.watchdog.now()
+    }
+
+    /// Takes an INS sample; NaN or infinite values are refused and leave the previous one in place.
+    pub fn on_ins(&mut self, ins: &InsState) -> Result<(), InputError> {
+        ins.validate().map_err(|reason| InputError::Ins {
+            seq: ins.hdr.seq,
+            reason,
+        })?;
+        self.ins = Some(*ins);
+        self.watchdog.seen(watchdog::INS, ins.hdr.stamp_ns);
+        Ok(())
+    }
+
+    pub fn on_contacts(&mut self, list: &ContactList) {
+        *self.contacts = *list;
+        self.watchdog.seen(watchdog::CONTACTS, list.hdr.stamp_ns);
+    }
+
+    /// Takes a world map: the one pass over it that extracts the obstacles near the vessel.
+    pub fn on_map(&mut self, hdr: &WorldMapHeader, cells: &[MapCell]) -> Result<(), InputError> {
+        let g = &hdr.grid;
+        if cells.len() != g.cell_count() {
+            return Err(InputError::MapSize {
+                seq: hdr.hdr.seq,
+                cells: cells.len(),
+                width: g.width,
+                height: g.height,
+            });
+        }
+        if !(g.resolution_m.is_finite() && g.resolution_m > 0.0) {
+            return Err(InputError::MapResolution {
+                seq: hdr.hdr.seq,
+                resolution: g.resolution_m,
+            });
+        }
+        if (g.resolution_m - self.arcs.resolution()).abs() > 1e-9 {
+            tracing::warn!(
+                "map resolution {} m differs from the configured {} m: rebuilding the arc table",
+                g.resolution_m,
+                self.arcs.resolution()
+            );
+            // The arc config was validated at start, so only the resolution can fail, and it was
+            // checked above.
+            if let Ok(set) = ArcSet::new(&self.cfg.arcs, g.resolution_m) {
+                self.arcs = set;
+            }
+        }
+        self.arcs.collect_hazards(g, cells, &mut self.hazards);
+        self.map_origin = g.center;
+        self.watchdog.seen(watchdog::MAP, hdr.hdr.stamp_ns);
+        Ok(())
+    }
+
+    /// The wait loop saw no data on these inputs ([`watchdog`] bits) within the deadline.
+    pub fn input_missed(&mut self, bits: u32) {
+        for bit in [watchdog::MAP, watchdog::CONTACTS, watchdog::INS] {
+            if bits & bit != 0 {
+                self.watchdog.missed(bit);
+            }
+        }
+    }
+
+    /// Validates and starts a mission; an invalid one leaves the running mission untouched.
+    pub fn load_mission(&mut self, text: &str) -> Result<String, MissionError> {
+        let mission = Mission::parse(text)?;
+        let message = format!(
+            "loaded mission '{}' ({} steps)",
+            mission.name,
+            mission.steps.len()
+        );
+        self.runner.load(mission);
+        self.chooser.reset();
+        self.controller = Controller::default();
+        Ok(message)
+    }
+
+    /// Answers a request of the mission service.
+    pub fn request(&mut self, action: u32, text: &[u8]) -> MissionReply {
+        let result = match action {
+            mission_action::LOAD => match std::str::from_utf8(text) {
+                Ok(t) => self.load_mission(t).map_err(|e| e.to_string()),
+                Err(e) => Err(format!("invalid mission: not UTF-8 text ({e})")),
+            },
+            mission_action::PAUSE => self.runner.pause().map(|()| self.runner.describe()),
+            mission_action::RESUME => self.runner.resume().map(|()| self.runner.describe()),
+            mission_action::ABORT => self.runner.abort().map(|()| self.runner.describe()),
+            mission_action::STATUS => Ok(self.runner.describe()),
+            other => Err(format!("unknown mission action {other}")),
+        };
+        let step = self.runner.step_index().map_or(-1, |s| s as i32);
+        let (accepted, message) = match result {
+            Ok(m) => (1, m),
+            Err(m) => (0, m),
+        };
+        MissionReply {
+            accepted,
+            step,
+            message: FixedStr::new(&message),
+        }
+    }
+
+    /// One cycle at stream time [`Sequencer::now`]: watchdog, mission step, avoidance, control.
+    /// `source` names the publisher in the headers; the caller sets `seq`.
+    pub fn cycle(&mut self, source: &str) -> (ActuatorCommand, SequencerStatus) {
+        let now = self.watchdog.now();
+        let dt = self
+            .last_cycle_ns
+            .map_or(0.0, |t| now.saturating_sub(t) as f64 * 1e-9)
+            .min(1.0);
+        self.last_cycle_ns = Some(now);
+        let cfg = &self.cfg.control;
+        let mut status = SequencerStatus {
+            hdr: Header::new(0, now, source),
+            paused: self.runner.paused() as u8,
+            chosen_arc: -1,
+            arc_count: self.arcs.arcs().len() as u32,
+            mission_name: FixedStr::new(self.runner.mission_name()),
+            ..Default::default()
+        };
+        let stale = self.watchdog.stale(now, self.runner.needs_contacts());
+        let (mode, (rudder, throttle)) = match self.ins.filter(|_| stale == 0) {
+            None => {
+                // The mission's state machine is frozen while inputs are stale.
+                self.blocked_since_ns = None;
+                (command_mode::SAFE_STOP, self.controller.stop(cfg, dt))
+            }
+            Some(ins) => {
+                let own = OwnState {
+                    position: [ins.pose.position[0], ins.pose.position[1]],
+                    yaw: ins.pose.yaw,
+                    yaw_rate: ins.angular_rate[2],
+                    speed_mps: ins.speed(),
+                };
+                let world = World {
+                    own,
+                    contacts: self.contacts.as_slice(),
+                    contacts_stamp_ns: self.contacts.hdr.stamp_ns,
+                };
+                let directive = self.runner.update(now, &world);
+                let blocked =
+                    self.arcs
+                        .blocked(&self.hazards, self.map_origin, own.position, own.yaw);
+                status.blocked_arcs = [blocked.mask as u64, (blocked.mask >> 64) as u64];
+                let guidance = match directive {
+                    Directive::Idle | Directive::Hold => None,
+                    Directive::Goto {
+                        goal,
+                        speed_mps,
+                        last,
+                    } => Some(control::to_point(cfg, &own, goal, speed_mps, last)),
+                    Directive::Station { position, radius_m } => {
+                        Some(control::station(cfg, &own, position, radius_m))
+                    }
+                    Directive::Follow {
+                        position,
+                        velocity,
+                        course,
+                        offset,
+                        max_speed_mps,
+                    } => Some(control::follow(
+                        cfg,
+                        &own,
+                        position,
+                        velocity,
+                        course,
+                        offset,
+                        max_speed_mps,
+                    )),
+                };
+                match guidance {
+                    None => {
+                        self.blocked_since_ns = None;
+                        (command_mode::IDLE, self.controller.stop(cfg, dt))
+                    }
+                    Some(g) => {
+                        status.goal = g.goal;
+                        status.goal_distance_m = g.range_m;
+                        self.steer(&own, g, blocked, now, dt, &mut status)
+                    }
+                }
+            }
+        };
+        status.mode = mode;
+        status.stale_inputs = stale;
+        status.step = self.runner.step_index().map_or(-1, |s| s as i32);
+        status.step_name = FixedStr::new(&self.runner.step_name());
+        let command = ActuatorCommand {
+            hdr: Header::new(0, now, source),
+            rudder_rad: rudder as f32,
+            throttle_pct: throttle as f32,
+            mode,
+            _pad: [0; 7],
+        };
+        (command, status)
+    }
+
+    /// Avoidance on top of the behaviour's guidance: the free arc closest to the desired course.
+    fn steer(
+        &mut self,
+        own: &OwnState,
+        g: Guidance,
+        blocked: crate::arcs::Blocked,
+        now: u64,
+        dt: f64,
+        status: &mut SequencerStatus,
+    ) -> (u8, (f64, f64)) {
+        let cfg = &self.cfg.control;
+        if g.speed_mps <= 0.0 {
+            // Drifting on station: nothing to avoid.
+            self.blocked_since_ns = None;
+            return (
+                command_mode::NAVIGATING,
+                self.controller.step(cfg, own, &g, dt),
+            );
+        }
+        let bearing = angle_diff(g.heading, own.yaw);
+        match self.chooser.choose(&self.arcs, blocked.mask, bearing) {
+            Some(arc) => {
+                self.blocked_since_ns = None;
+                status.chosen_arc = arc as i32;
+                // The free arc nearest the goal: steer the exact course rather than the arc's
+                // quantized one. Otherwise steer along the chosen arc.
+                let heading = if arc == self.arcs.nearest(bearing) {
+                    g.heading
+                } else {
+                    own.yaw + self.arcs.arcs()[arc].direction
+                };
+                let g = Guidance { heading, ..g };
+                (
+                    command_mode::NAVIGATING,
+                    self.controller.step(cfg, own, &g, dt),
+                )
+            }
+            None => {
+                // Slow down at once, turn away from the side with more obstacles, stop if it lasts.
+                let since = *self.blocked_since_ns.get_or_insert(now);
+                let slow = now.saturating_sub(since) as f64 * 1e-9 < cfg.blocked_slow_s;
+                let throttle = if slow { cfg.blocked_throttle_pct } else { 0.0 };
+                let away = if blocked.port > blocked.starboard {
+                    -cfg.max_rudder_rad
+                } else {
+                    cfg.max_rudder_rad
+                };
+                self.controller.cap_throttle(throttle);
+                (
+                    command_mode::BLOCKED,
+                    self.controller.apply(cfg, away, throttle, dt),
+                )
+            }
+        }
+    }
+}

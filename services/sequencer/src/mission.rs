@@ -1,0 +1,936 @@
+//! Missions: a TOML list of steps from the command dictionary, validated as a whole before it can
+//! replace the running one, and executed as finite state machines with bounded work per cycle.
+//!
+//! ```toml
+//! name = "patrol"
+//! cruise_speed_mps = 5.0           # optional, speed of goto steps without their own
+//!
+//! [[step]]
+//! type = "goto"
+//! waypoints = [[100.0, 0.0], [100.0, 80.0]]   # ENU metres
+//! radius_m = 5.0                  # acceptance radius (default 5)
+//! speed_mps = 6.0                 # optional
+//! timeout_s = 120.0               # optional, any step
+//! on_timeout = "abort"            # or "next"; any step (default "abort")
+//!
+//! [[step]]
+//! type = "follow"
+//! contact_id = 3                  # or: class = "boat" (nearest confirmed contact of that class)
+//! astern_m = 20.0                 # goal behind the target ...
+//! port_m = 0.0                    # ... and to its left (negative: starboard)
+//! max_speed_mps = 10.0            # optional
+//! duration_s = 240.0              # optional: end of the step; without it, until timeout or abort
+//! lost_timeout_s = 5.0            # optional: the target may vanish this long
+//!
+//! [[step]]
+//! type = "station_keep"
+//! position = [0.0, 0.0]
+//! radius_m = 5.0
+//! duration_s = 60.0
+//!
+//! [[step]]
+//! type = "set_speed"              # cruise speed of the following goto steps
+//! speed_mps = 3.0
+//!
+//! [[step]]
+//! type = "wait"                   # throttle 0 for this long
+//! seconds = 10.0
+//!
+//! [[step]]
+//! type = "stop"                   # throttle 0 until the boat is (nearly) still
+//! ```
+
+use crate::control::{FollowOffset, OwnState};
+use messages::{contact_class, Contact};
+use serde::Deserialize;
+
+const NS: f64 = 1e9;
+/// Step transitions (instant steps such as set_speed) allowed in one cycle; more wait for the next.
+const MAX_TRANSITIONS_PER_CYCLE: usize = 8;
+/// Below this speed over ground a `stop` step is done (m/s).
+const STOPPED_MPS: f64 = 0.3;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MissionError {
+    #[error("invalid mission: {0}")]
+    Toml(String),
+    #[error("invalid mission: step {number} ({kind}): {message}")]
+    Step {
+        /// 1-based, as a person counts the `[[step]]` tables.
+        number: usize,
+        kind: String,
+        message: String,
+    },
+    #[error("invalid mission: field `{field}`: {message}")]
+    Field {
+        field: &'static str,
+        message: String,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum StepKind {
+    Goto {
+        waypoints: Vec<[f64; 2]>,
+        #[serde(default = "default_radius")]
+        radius_m: f64,
+        speed_mps: Option<f64>,
+    },
+    Follow {
+        contact_id: Option<u32>,
+        class: Option<String>,
+        #[serde(default)]
+        astern_m: f64,
+        #[serde(default)]
+        port_m: f64,
+        max_speed_mps: Option<f64>,
+        duration_s: Option<f64>,
+        #[serde(default = "default_lost")]
+        lost_timeout_s: f64,
+    },
+    StationKeep {
+        position: [f64; 2],
+        radius_m: f64,
+        duration_s: f64,
+    },
+    SetSpeed {
+        speed_mps: f64,
+    },
+    Stop {},
+    Wait {
+        seconds: f64,
+    },
+}
+
+fn default_radius() -> f64 {
+    5.0
+}
+
+fn default_lost() -> f64 {
+    5.0
+}
+
+impl StepKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Goto { .. } => "goto",
+            Self::Follow { .. } => "follow",
+            Self::StationKeep { .. } => "station_keep",
+            Self::SetSpeed { .. } => "set_speed",
+            Self::Stop {} => "stop",
+            Self::Wait { .. } => "wait",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnTimeout {
+    #[default]
+    Abort,
+    Next,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step {
+    pub kind: StepKind,
+    pub timeout_s: Option<f64>,
+    pub on_timeout: OnTimeout,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mission {
+    pub name: String,
+    pub cruise_speed_mps: f64,
+    pub steps: Vec<Step>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMission {
+    #[serde(default = "unnamed")]
+    name: String,
+    cruise_speed_mps: Option<f64>,
+    step: Vec<toml::Table>,
+}
+
+fn unnamed() -> String {
+    "unnamed".into()
+}
+
+/// Class names accepted by `follow.class`.
+fn class_by_name(name: &str) -> Option<u8> {
+    [
+        contact_class::BOAT,
+        contact_class::CHANNEL_MARKER,
+        contact_class::EXTENDED,
+        contact_class::UNKNOWN,
+    ]
+    .into_iter()
+    .find(|&c| contact_class::name(c) == name)
+}
+
+impl Mission {
+    /// Parses and validates a whole mission; any error names the step and the field.
+    pub fn parse(text: &str) -> Result<Self, MissionError> {
+        let raw: RawMission =
+            toml::from_str(text).map_err(|e| MissionError::Toml(e.message().to_string()))?;
+        let cruise = raw.cruise_speed_mps.unwrap_or(3.0);
+        if !(cruise.is_finite() && cruise > 0.0) {
+            return Err(MissionError::Field {
+                field: "cruise_speed_mps",
+                message: format!("must be a positive speed, got {cruise}"),
+            });
+        }
+        if raw.step.is_empty() {
+            return Err(MissionError::Field {
+                field: "step",
+                message: "a mission needs at least one [[step]]".into(),
+            });
+        }
+        let steps = raw
+            .step
+            .into_iter()
+            .enumerate()
+            .map(|(i, table)| parse_step(i + 1, table))
+            .collect::<Result<_, _>>()?;
+        Ok(Self {
+            name: raw.name,
+            cruise_speed_mps: cruise,
+            steps,
+        })
+    }
+}
+
+fn parse_step(number: usize, mut table: toml::Table) -> Result<Step, MissionError> {
+    let kind_name = table
+        .get("type")
+        .and_then(|t| t.as_str())
+        .unwrap_or("?")
+        .to_string();
+    let err = |message: String| MissionError::Step {
+        number,
+        kind: kind_name.clone(),
+        message,
+    };
+    // Fields common to every step are taken out first, so the step kinds can deny unknown fields.
+    let timeout_s = match table.remove("timeout_s") {
+        None => None,
+        Some(v) => Some(
+            v.as_float()
+                .or(v.as_integer().map(|i| i as f64))
+                .ok_or_else(|| err("field `timeout_s`: expected a number of seconds".into()))?,
+        ),
+    };
+    let on_timeout = match table.remove("on_timeout") {
+        None => OnTimeout::Abort,
+        Some(v) => match v.as_str() {
+            Some("abort") => OnTimeout::Abort,
+            Some("next") => OnTimeout::Next,
+            _ => {
+                return Err(err(format!(
+                    "field `on_timeout`: expected \"abort\" or \"next\", got {v}"
+                )))
+            }
+        },
+    };
+    if !table.contains_key("type") {
+        return Err(err(
+            "missing field `type` (goto, follow, station_keep, set_speed, stop, wait)".into(),
+        ));
+    }
+    let kind: StepKind = toml::Value::Table(table)
+        .try_into()
+        .map_err(|e: toml::de::Error| err(e.message().trim().to_string()))?;
+    let step = Step {
+        kind,
+        timeout_s,
+        on_timeout,
+    };
+    validate(&step).map_err(|(field, message)| err(format!("field `{field}`: {message}")))?;
+    Ok(step)
+}
+
+type Invalid = (&'static str, String);
+
+fn positive(field: &'static str, v: f64) -> Result<(), Invalid> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err((field, format!("must be a positive number, got {v}")))
+    }
+}
+
+fn finite(field: &'static str, values: &[f64]) -> Result<(), Invalid> {
+    match values.iter().find(|v| !v.is_finite()) {
+        Some(v) => Err((field, format!("must be finite, got {v}"))),
+        None => Ok(()),
+    }
+}
+
+fn validate(step: &Step) -> Result<(), Invalid> {
+    if let Some(t) = step.timeout_s {
+        positive("timeout_s", t)?;
+    }
+    match &step.kind {
+        StepKind::Goto {
+            waypoints,
+            radius_m,
+            speed_mps,
+        } => {
+            if waypoints.is_empty() {
+                return Err(("waypoints", "needs at least one [east, north] point".into()));
+            }
+            finite("waypoints", &waypoints.concat())?;
+            positive("radius_m", *radius_m)?;
+            if let Some(s) = speed_mps {
+                positive("speed_mps", *s)?;
+            }
+        }
+        StepKind::Follow {
+            contact_id,
+            class,
+            astern_m,
+            port_m,
+            max_speed_mps,
+            duration_s,
+            lost_timeout_s,
+        } => {
+            match (contact_id, class) {
+                (Some(_), Some(_)) | (None, None) => {
+                    return Err((
+                        "contact_id",
+                        "give exactly one of `contact_id` or `class`".into(),
+                    ))
+                }
+                (None, Some(c)) if class_by_name(c).is_none() => {
+                    return Err((
+                        "class",
+                        format!("unknown class {c:?}; use boat, marker, extended or unknown"),
+                    ))
+                }
+                _ => {}
+            }
+            finite("astern_m", &[*astern_m])?;
+            finite("port_m", &[*port_m])?;
+            if astern_m.hypot(*port_m) < 1.0 {
+                return Err(("astern_m", "the offset (astern_m, port_m) must be at least 1 m: the goal would be the target itself".into()));
+            }
+            if let Some(s) = max_speed_mps {
+                positive("max_speed_mps", *s)?;
+            }
+            if let Some(d) = duration_s {
+                positive("duration_s", *d)?;
+            }
+            positive("lost_timeout_s", *lost_timeout_s)?;
+        }
+        StepKind::StationKeep {
+            position,
+            radius_m,
+            duration_s,
+        } => {
+            finite("position", position)?;
+            positive("radius_m", *radius_m)?;
+            positive("duration_s", *duration_s)?;
+        }
+        StepKind::SetSpeed { speed_mps } => positive("speed_mps", *speed_mps)?,
+        StepKind::Stop {} => {}
+        StepKind::Wait { seconds } => positive("seconds", *seconds)?,
+    }
+    Ok(())
+}
+
+/// What the current step wants this cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Directive {
+    /// No mission, or it ended: throttle 0.
+    Idle,
+    /// Stopped on purpose (stop, wait, pause, waiting for a contact): throttle 0.
+    Hold,
+    Goto {
+        goal: [f64; 2],
+        speed_mps: f64,
+        /// Last waypoint of the step: slow down on the approach.
+        last: bool,
+    },
+    Station {
+        position: [f64; 2],
+        radius_m: f64,
+    },
+    Follow {
+        position: [f64; 2],
+        velocity: [f64; 2],
+        /// Target course used for the offset (kept when the target is too slow to have one).
+        course: f64,
+        offset: FollowOffset,
+        max_speed_mps: f64,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunState {
+    Idle,
+    Running,
+    Paused,
+    Finished,
+    Aborted,
+    Failed(String),
+}
+
+/// The followed contact, locked when the step starts.
+#[derive(Debug, Clone, Copy)]
+struct Lock {
+    id: u32,
+    course: f64,
+    last_seen_ns: u64,
+}
+
+/// Executes one mission. All time comes from the caller (stream time).
+#[derive(Debug)]
+pub struct Runner {
+    mission: Option<Mission>,
+    state: RunState,
+    step: usize,
+    /// Running time in the current step (pauses excluded).
+    step_elapsed_ns: u64,
+    last_now: Option<u64>,
+    waypoint: usize,
+    cruise_speed: f64,
+    lock: Option<Lock>,
+    /// Maximum speed for behaviours that have no speed of their own.
+    max_speed: f64,
+}
+
+/// What the runner sees of the world each cycle.
+pub struct World<'a> {
+    pub own: OwnState,
+    pub contacts: &'a [Contact],
+    /// Stamp of the contact list (its positions are predicted from there to now).
+    pub contacts_stamp_ns: u64,
+}
+
+impl Runner {
+    pub fn new(max_speed: f64) -> Self {
+        Self {
+            mission: None,
+            state: RunState::Idle,
+            step: 0,
+            step_elapsed_ns: 0,
+            last_now: None,
+            waypoint: 0,
+            cruise_speed: 3.0,
+            lock: None,
+            max_speed,
+        }
+    }
+
+    /// Replaces the mission (already validated: an invalid one never gets here) and starts it.
+    pub fn load(&mut self, mission: Mission) {
+        self.cruise_speed = mission.cruise_speed_mps;
+        self.mission = Some(mission);
+        self.state = RunState::Running;
+        self.enter_step(0);
+    }
+
+    pub fn pause(&mut self) -> Result<(), String> {
+        match self.state {
+            RunState::Running => {
+                self.state = RunState::Paused;
+                Ok(())
+            }
+            RunState::Paused => Ok(()),
+            _ => Err(format!("nothing to pause: {}", self.describe())),
+        }
+    }
+
+    pub fn resume(&mut self) -> Result<(), String> {
+        match self.state {
+            RunState::Paused => {
+                self.state = RunState::Running;
+                Ok(())
+            }
+            RunState::Running => Ok(()),
+            _ => Err(format!("nothing to resume: {}", self.describe())),
+        }
+    }
+
+    pub fn abort(&mut self) -> Result<(), String> {
+        match self.state {
+            RunState::Running | RunState::Paused => {
+                self.state = RunState::Aborted;
+                Ok(())
+            }
+            _ => Err(format!("nothing to abort: {}", self.describe())),
+        }
+    }
+
+    pub fn state(&self) -> &RunState {
+        &self.state
+    }
+
+    pub fn paused(&self) -> bool {
+        self.state == RunState::Paused
+    }
+
+    pub fn mission_name(&self) -> &str {
+        self.mission.as_ref().map_or("", |m| m.name.as_str())
+    }
+
+    /// Index of the step being executed, while running or paused.
+    pub fn step_index(&self) -> Option<usize> {
+        matches!(self.state, RunState::Running | RunState::Paused).then_some(self.step)
+    }
+
+    /// Whether the current step needs contacts (for the watchdog).
+    pub fn needs_contacts(&self) -> bool {
+        self.current()
+            .is_some_and(|s| matches!(s.kind, StepKind::Follow { .. }))
+    }
+
+    fn current(&self) -> Option<&Step> {
+        self.step_index()
+            .and_then(|i| self.mission.as_ref().and_then(|m| m.steps.get(i)))
+    }
+
+    /// Short description of the current step ("goto wp 2/3").
+    pub fn step_name(&self) -> String {
+        let Some(step) = self.current() else {
+            return String::new();
+        };
+        match &step.kind {
+            StepKind::Goto { waypoints, .. } => {
+                format!("goto wp {}/{}", self.waypoint + 1, waypoints.len())
+            }
+            StepKind::Follow { .. } => match self.lock {
+                Some(l) => format!("follow #{}", l.id),
+                None => "follow (searching)".into(),
+            },
+            k => k.name().to_string(),
+        }
+    }
+
+    /// One line for the operator.
+    pub fn describe(&self) -> String {
+        let name = self.mission_name();
+        let total = self.mission.as_ref().map_or(0, |m| m.steps.len());
+        match &self.state {
+            RunState::Idle => "no mission".into(),
+            RunState::Running | RunState::Paused => format!(
+                "mission '{name}' {}: step {}/{total} {}",
+                if self.paused() { "paused" } else { "running" },
+                self.step + 1,
+                self.step_name()
+            ),
+            RunState::Finished => format!("mission '{name}' finished"),
+            RunState::Aborted => {
+                format!("mission '{name}' aborted at step {}/{total}", self.step + 1)
+            }
+            RunState::Failed(why) => format!("mission '{name}' failed: {why}"),
+        }
+    }
+
+    fn enter_step(&mut self, index: usize) {
+        self.step = index;
+        self.step_elapsed_ns = 0;
+        self.waypoint = 0;
+        self.lock = None;
+        if self
+            .mission
+            .as_ref()
+            .is_some_and(|m| index >= m.steps.len())
+        {
+            self.state = RunState::Finished;
+        }
+    }
+
+    /// Advances the state machine to stream time `now` and returns what to do this cycle.
+    pub fn update(&mut self, now: u64, world: &World) -> Directive {
+        let dt = self.last_now.map_or(0, |t| now.saturating_sub(t));
+        self.last_now = Some(now);
+        match self.state {
+            RunState::Running => self.step_elapsed_ns += dt,
+            RunState::Paused => return Directive::Hold,
+            _ => return Directive::Idle,
+        }
+        for _ in 0..MAX_TRANSITIONS_PER_CYCLE {
+            let Some(step) = self.current().cloned() else {
+                return Directive::Idle;
+            };
+            let elapsed = self.step_elapsed_ns as f64 / NS;
+            if step.timeout_s.is_some_and(|t| elapsed > t) {
+                let why = format!(
+                    "step {} ({}) timed out after {:.1} s",
+                    self.step + 1,
+                    step.kind.name(),
+                    elapsed
+                );
+                match step.on_timeout {
+                    OnTimeout::Abort => {
+                        self.state = RunState::Failed(why);
+                        return Directive::Idle;
+                    }
+                    OnTimeout::Next => {
+                        tracing::warn!("{why}; going on with the next step");
+                        self.enter_step(self.step + 1);
+                        continue;
+                    }
+                }
+            }
+            match self.step_directive(&step.kind, now, elapsed, world) {
+                Some(d) => return d,
+                None => self.enter_step(self.step + 1),
+            }
+        }
+        // Many instant steps in a row: the rest waits for the next cycle, so a cycle stays bounded.
+        Directive::Hold
+    }
+
+    /// The directive of a step, or `None` when the step is done.
+    fn step_directive(
+        &mut self,
+        kind: &StepKind,
+        now: u64,
+        elapsed: f64,
+        world: &World,
+    ) -> Option<Directive> {
+        let own = &world.own;
+        match kind {
+            StepKind::Goto {
+                waypoints,
+                radius_m,
+                speed_mps,
+            } => {
+                // At most one waypoint per cycle: bounded work even for long lists.
+                let wp = waypoints[self.waypoint];
+                if (wp[0] - own.position[0]).hypot(wp[1] - own.position[1]) <= *radius_m {
+                    self.waypoint += 1;
+                }
+                let wp = *waypoints.get(self.waypoint)?;
+                Some(Directive::Goto {
+                    goal: wp,
+                    speed_mps: speed_mps.unwrap_or(self.cruise_speed),
+                    last: self.waypoint + 1 == waypoints.len(),
+                })
+            }
+            StepKind::Follow {
+                contact_id,
+                class,
+                astern_m,
+                port_m,
+                max_speed_mps,
+                duration_s,
+                lost_timeout_s,
+            } => {
+                if duration_s.is_some_and(|d| elapsed >= d) {
+                    return None;
+                }
+                let lock_id = self.lock.map(|l| l.id).or(*contact_id);
+                let found = match (lock_id, class) {
+                    (Some(id), _) => world.contacts.iter().find(|c| c.id == id),
+                    (None, Some(class)) => {
+                        let class = class_by_name(class)?;
+                        nearest(world.contacts, class, own.position)
+                    }
+                    (None, None) => None,
+                };
+                let Some(c) = found else {
+                    if let Some(lock) = self.lock {
+                        if now.saturating_sub(lock.last_seen_ns) as f64 / NS > *lost_timeout_s {
+                            self.state = RunState::Failed(format!(
+                                "step {} (follow): contact #{} lost for more than {lost_timeout_s} s",
+                                self.step + 1,
+                                lock.id
+                            ));
+                            return Some(Directive::Idle);
+                        }
+                    }
+                    // Not (yet) seen: wait stopped; the step timeout bounds the wait.
+                    return Some(Directive::Hold);
+                };
+                let course = if c.velocity[0].hypot(c.velocity[1]) > 0.5 {
+                    c.velocity[1].atan2(c.velocity[0])
+                } else {
+                    self.lock.map_or(own.yaw, |l| l.course)
+                };
+                self.lock = Some(Lock {
+                    id: c.id,
+                    course,
+                    last_seen_ns: world.contacts_stamp_ns,
+                });
+                // The list is as old as its stamp: predict the target to now.
+                let age = now.saturating_sub(world.contacts_stamp_ns) as f64 / NS;
+                Some(Directive::Follow {
+                    position: [
+                        c.position[0] + c.velocity[0] * age,
+                        c.position[1] + c.velocity[1] * age,
+                    ],
+                    velocity: c.velocity,
+                    course,
+                    offset: FollowOffset {
+                        astern_m: *astern_m,
+                        port_m: *port_m,
+                    },
+                    max_speed_mps: max_speed_mps.unwrap_or(self.max_speed),
+                })
+            }
+            StepKind::StationKeep {
+                position,
+                radius_m,
+                duration_s,
+            } => (elapsed < *duration_s).then_some(Directive::Station {
+                position: *position,
+                radius_m: *radius_m,
+            }),
+            StepKind::SetSpeed { speed_mps } => {
+                self.cruise_speed = *speed_mps;
+                None
+            }
+            StepKind::Stop {} => (own.speed_mps > STOPPED_MPS).then_some(Directive::Hold),
+            StepKind::Wait { seconds } => (elapsed < *seconds).then_some(Directive::Hold),
+        }
+    }
+}
+
+fn nearest(contacts: &[Contact], class: u8, from: [f64; 2]) -> Option<&Contact> {
+    let d = |c: &Contact| (c.position[0] - from[0]).hypot(c.position[1] - from[1]);
+    contacts
+        .iter()
+        .filter(|c| c.class == class && c.confirmed == 1)
+        .min_by(|a, b| d(a).total_cmp(&d(b)).then(a.id.cmp(&b.id)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const S: u64 = 1_000_000_000;
+
+    fn world(position: [f64; 2]) -> World<'static> {
+        World {
+            own: OwnState {
+                position,
+                ..Default::default()
+            },
+            contacts: &[],
+            contacts_stamp_ns: 0,
+        }
+    }
+
+    fn err(text: &str) -> String {
+        Mission::parse(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn parses_every_step_kind() {
+        let m = Mission::parse(
+            r#"
+            name = "all"
+            [[step]]
+            type = "goto"
+            waypoints = [[10.0, 0.0], [10, 10]]
+            timeout_s = 60
+            on_timeout = "next"
+            [[step]]
+            type = "follow"
+            class = "boat"
+            astern_m = 20.0
+            [[step]]
+            type = "station_keep"
+            position = [0.0, 0.0]
+            radius_m = 5.0
+            duration_s = 30.0
+            [[step]]
+            type = "set_speed"
+            speed_mps = 4.0
+            [[step]]
+            type = "stop"
+            [[step]]
+            type = "wait"
+            seconds = 2.5
+            "#,
+        )
+        .unwrap();
+        assert_eq!(m.name, "all");
+        assert_eq!(m.steps.len(), 6);
+        assert_eq!(m.steps[0].timeout_s, Some(60.0));
+        assert_eq!(m.steps[0].on_timeout, OnTimeout::Next);
+        assert!(
+            matches!(&m.steps[0].kind, StepKind::Goto { waypoints, radius_m, .. } if waypoints[1] == [10.0, 10.0] && *radius_m == 5.0)
+        );
+    }
+
+    #[test]
+    fn parsing_errors_name_the_step_and_the_field() {
+        let e = err("[[step]]\ntype = \"goto\"\nwaypoints = [[1.0, 2.0]]\nspede = 3.0\n");
+        assert!(e.contains("step 1 (goto)") && e.contains("spede"), "{e}");
+        let e = err(
+            "[[step]]\ntype = \"wait\"\nseconds = 1\n[[step]]\ntype = \"goto\"\nwaypoints = []\n",
+        );
+        assert!(
+            e.contains("step 2 (goto)") && e.contains("`waypoints`"),
+            "{e}"
+        );
+        let e = err("[[step]]\ntype = \"goto\"\nwaypoints = [[1.0, 2.0]]\nspeed_mps = -1\n");
+        assert!(e.contains("`speed_mps`") && e.contains("positive"), "{e}");
+        let e = err("[[step]]\ntype = \"follow\"\nastern_m = 20\n");
+        assert!(
+            e.contains("step 1 (follow)") && e.contains("contact_id"),
+            "{e}"
+        );
+        let e = err("[[step]]\ntype = \"follow\"\nclass = \"submarine\"\nastern_m = 20\n");
+        assert!(e.contains("`class`") && e.contains("submarine"), "{e}");
+        let e = err("[[step]]\ntype = \"jump\"\n");
+        assert!(
+            e.contains("step 1 (jump)") && e.contains("unknown variant"),
+            "{e}"
+        );
+        let e = err("[[step]]\nwaypoints = [[1.0, 2.0]]\n");
+        assert!(e.contains("step 1") && e.contains("`type`"), "{e}");
+        let e = err("[[step]]\ntype = \"stop\"\nspeed = 1\n");
+        assert!(e.contains("step 1 (stop)") && e.contains("speed"), "{e}");
+        let e = err("[[step]]\ntype = \"wait\"\nseconds = 1\ntimeout_s = \"soon\"\n");
+        assert!(e.contains("`timeout_s`"), "{e}");
+        let e = err("[[step]]\ntype = \"wait\"\nseconds = 1\non_timeout = \"panic\"\n");
+        assert!(e.contains("`on_timeout`"), "{e}");
+        let e = err("nmae = \"x\"\n[[step]]\ntype = \"stop\"\n");
+        assert!(e.contains("nmae"), "{e}");
+        let e = err("name = \"x\"\n");
+        assert!(e.contains("step"), "{e}");
+        let e = err("[[step]]\ntype = \"station_keep\"\nposition = [0.0, 0.0]\nradius_m = 5\n");
+        assert!(e.contains("duration_s"), "{e}");
+    }
+
+    fn goto_mission(extra: &str) -> Mission {
+        Mission::parse(&format!(
+            "[[step]]\ntype = \"goto\"\nwaypoints = [[100.0, 0.0], [100.0, 100.0]]\nradius_m = 5.0\n{extra}\n[[step]]\ntype = \"wait\"\nseconds = 1\n"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn waypoint_fsm_advances_on_arrival() {
+        let mut r = Runner::new(10.0);
+        r.load(goto_mission(""));
+        let d = r.update(0, &world([0.0, 0.0]));
+        assert!(matches!(
+            d,
+            Directive::Goto {
+                goal: [100.0, 0.0],
+                last: false,
+                ..
+            }
+        ));
+        // Within the acceptance radius of waypoint 1: next waypoint.
+        let d = r.update(S, &world([97.0, 1.0]));
+        assert!(
+            matches!(
+                d,
+                Directive::Goto {
+                    goal: [100.0, 100.0],
+                    last: true,
+                    ..
+                }
+            ),
+            "{d:?}"
+        );
+        assert_eq!(r.step_name(), "goto wp 2/2");
+        // Arrival at the last waypoint ends the step; the wait step holds.
+        let d = r.update(2 * S, &world([100.0, 98.0]));
+        assert_eq!(d, Directive::Hold);
+        assert_eq!(r.step_index(), Some(1));
+        assert_eq!(r.update(4 * S, &world([100.0, 98.0])), Directive::Idle);
+        assert_eq!(r.state(), &RunState::Finished);
+    }
+
+    #[test]
+    fn waypoint_fsm_times_out() {
+        let mut r = Runner::new(10.0);
+        r.load(goto_mission("timeout_s = 10"));
+        assert!(matches!(
+            r.update(0, &world([0.0, 0.0])),
+            Directive::Goto { .. }
+        ));
+        assert!(matches!(
+            r.update(10 * S, &world([0.0, 0.0])),
+            Directive::Goto { .. }
+        ));
+        assert_eq!(r.update(10 * S + 1, &world([0.0, 0.0])), Directive::Idle);
+        assert!(matches!(r.state(), RunState::Failed(why) if why.contains("timed out")));
+        // With on_timeout = "next" the mission goes on.
+        let mut r = Runner::new(10.0);
+        r.load(goto_mission("timeout_s = 10\non_timeout = \"next\""));
+        r.update(0, &world([0.0, 0.0]));
+        assert_eq!(r.update(11 * S, &world([0.0, 0.0])), Directive::Hold);
+        assert_eq!(r.step_index(), Some(1));
+    }
+
+    #[test]
+    fn pause_stops_the_clock_and_abort_ends() {
+        let mut r = Runner::new(10.0);
+        r.load(goto_mission("timeout_s = 10"));
+        r.update(0, &world([0.0, 0.0]));
+        r.pause().unwrap();
+        assert_eq!(r.update(100 * S, &world([0.0, 0.0])), Directive::Hold);
+        r.resume().unwrap();
+        assert!(
+            matches!(
+                r.update(105 * S, &world([0.0, 0.0])),
+                Directive::Goto { .. }
+            ),
+            "paused time does not count"
+        );
+        r.abort().unwrap();
+        assert_eq!(r.update(106 * S, &world([0.0, 0.0])), Directive::Idle);
+        assert!(r.pause().is_err());
+    }
+
+    #[test]
+    fn follow_locks_the_nearest_of_a_class_and_predicts_it() {
+        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
+            .unwrap();
+        let mut r = Runner::new(10.0);
+        r.load(m);
+        let boat = |id, x: f64| Contact {
+            id,
+            class: contact_class::BOAT,
+            confirmed: 1,
+            position: [x, 0.0],
+            velocity: [2.0, 0.0],
+            ..Default::default()
+        };
+        let contacts = [boat(1, 300.0), boat(2, 100.0)];
+        let w = World {
+            own: OwnState::default(),
+            contacts: &contacts,
+            contacts_stamp_ns: 0,
+        };
+        let d = r.update(S, &w);
+        let Directive::Follow {
+            position, course, ..
+        } = d
+        else {
+            panic!("{d:?}")
+        };
+        assert_eq!(position, [102.0, 0.0], "nearest, predicted 1 s ahead");
+        assert_eq!(course, 0.0);
+        assert_eq!(r.step_name(), "follow #2");
+        // Target gone past the lost timeout: the step fails.
+        let w = World { contacts: &[], ..w };
+        assert_eq!(r.update(3 * S, &w), Directive::Hold);
+        assert_eq!(r.update(10 * S, &w), Directive::Idle);
+        assert!(matches!(r.state(), RunState::Failed(why) if why.contains("lost")));
+    }
+
+    #[test]
+    fn instant_steps_are_bounded_per_cycle() {
+        let text: String = (0..20)
+            .map(|_| "[[step]]\ntype = \"set_speed\"\nspeed_mps = 2\n")
+            .collect();
+        let mut r = Runner::new(10.0);
+        r.load(Mission::parse(&text).unwrap());
+        assert_eq!(r.update(0, &world([0.0, 0.0])), Directive::Hold);
+        assert_eq!(r.step_index(), Some(MAX_TRANSITIONS_PER_CYCLE));
+        r.update(1, &world([0.0, 0.0]));
+        assert_eq!(r.update(2, &world([0.0, 0.0])), Directive::Idle);
+    }
+}
