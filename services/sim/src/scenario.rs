@@ -16,17 +16,19 @@ use crate::world::{
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// The messages carry the underlying error's text, so the inner errors are deliberately not exposed
+/// as `source` (a report would print them twice).
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    #[error("cannot read scenario {path}: {source}")]
+    #[error("cannot read scenario {path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("scenario {origin}: {source}")]
+    #[error("scenario {origin}: {error}")]
     Parse {
         origin: String,
-        source: toml::de::Error,
+        error: toml::de::Error,
     },
     #[error("scenario {origin}: `{field}`: {message}")]
     Invalid {
@@ -372,18 +374,18 @@ impl Default for MissionSpec {
 
 impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| ScenarioError::Io {
             path: path.to_owned(),
-            source,
+            error,
         })?;
         Self::parse(&text, &path.display().to_string())
     }
 
     /// Parses TOML text; `origin` names the source in error messages.
     pub fn parse(text: &str, origin: &str) -> Result<Scenario, ScenarioError> {
-        toml::from_str(text).map_err(|source| ScenarioError::Parse {
+        toml::from_str(text).map_err(|error| ScenarioError::Parse {
             origin: origin.to_owned(),
-            source,
+            error,
         })
     }
 
