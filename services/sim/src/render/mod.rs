@@ -48,7 +48,7 @@ impl Renderer {
     pub fn prepare(&mut self, world: &World, t: f64) {
         if self.scene_time != Some(t) {
             self.scene.build(world, t);
-            self.sky.fill(&world.sky, t as f32);
+            self.sky.update(&world.sky, t);
             self.scene_time = Some(t);
         }
     }

@@ -12,13 +12,27 @@ use rayon::prelude::*;
 const W: usize = 1024;
 const H: usize = 256;
 
+/// Clouds drift a fraction of a texel per second, so the dome is refilled on a fixed time grid
+/// (deterministic: the content depends only on the quantised time, not on the call history).
+const REFILL_PERIOD: f64 = 0.5;
+
 #[derive(Default)]
 pub(crate) struct SkyCache {
     data: Vec<V3>,
+    filled_at: Option<f64>,
 }
 
 impl SkyCache {
-    pub fn fill(&mut self, sky: &Sky, t: f32) {
+    /// Makes the cache valid for time `t`.
+    pub fn update(&mut self, sky: &Sky, t: f64) {
+        let tq = (t / REFILL_PERIOD).floor() * REFILL_PERIOD;
+        if self.filled_at != Some(tq) {
+            self.fill(sky, tq as f32);
+            self.filled_at = Some(tq);
+        }
+    }
+
+    fn fill(&mut self, sky: &Sky, t: f32) {
         self.data.resize(W * H, V3::zeros());
         self.data
             .par_chunks_mut(W)
