@@ -1,0 +1,222 @@
+//! Whole cycles of the sequencer library: inputs in, command and status out.
+
+use messages::{command_mode, GridGeometry, Header, InsState, MapCell, Pose, WorldMapHeader};
+use sequencer::{watchdog, Config, Sequencer};
+
+const MS: u64 = 1_000_000;
+const N: u32 = 200;
+
+fn map(stamp_ns: u64, obstacles: &[(f64, f64)]) -> (WorldMapHeader, Vec<MapCell>) {
+    let grid = GridGeometry {
+        width: N,
+        height: N,
+        resolution_m: 0.5,
+        center: [0.0, 0.0],
+    };
+    let mut cells = vec![MapCell::default(); grid.cell_count()];
+    for &(e, n) in obstacles {
+        if let Some((c, r)) = grid.cell_of(e, n) {
+            cells[(r * N + c) as usize].cost = MapCell::LETHAL_COST;
+        }
+    }
+    let hdr = WorldMapHeader {
+        hdr: Header::new(0, stamp_ns, "test"),
+        grid,
+        ..Default::default()
+    };
+    (hdr, cells)
+}
+
+fn ins(stamp_ns: u64, yaw: f64, speed: f64) -> InsState {
+    InsState {
+        hdr: Header::new(0, stamp_ns, "test"),
+        pose: Pose {
+            yaw,
+            ..Default::default()
+        },
+        velocity: [speed * yaw.cos(), speed * yaw.sin(), 0.0],
+        ..Default::default()
+    }
+}
+
+/// A wall of obstacles across the whole field of view, `range` m ahead (east).
+fn wall(range: f64) -> Vec<(f64, f64)> {
+    (-80..=80).map(|i| (range, i as f64 * 0.5)).collect()
+}
+
+fn feed(seq: &mut Sequencer, t: u64, obstacles: &[(f64, f64)]) {
+    seq.on_ins(&ins(t, 0.0, 5.0)).unwrap();
+    let (h, c) = map(t, obstacles);
+    seq.on_map(&h, &c).unwrap();
+}
+
+fn started(mission: &str) -> Sequencer {
+    let mut seq = Sequencer::new(Config::default()).unwrap();
+    seq.load_mission(mission).unwrap();
+    seq
+}
+
+const EAST: &str = "[[step]]\ntype = \"goto\"\nwaypoints = [[300.0, 0.0]]\nspeed_mps = 5.0\n";
+
+#[test]
+fn open_water_drives_to_the_goal() {
+    let mut seq = started(EAST);
+    let mut last = (0.0, 0.0);
+    for k in 1..=50 {
+        feed(&mut seq, k * 100 * MS, &[]);
+        let (cmd, status) = seq.cycle("test");
+        assert_eq!(cmd.mode, command_mode::NAVIGATING);
+        assert_eq!(cmd.hdr.stamp_ns, k * 100 * MS);
+        assert_eq!(status.blocked_arcs, [0, 0]);
+        assert!(status.chosen_arc >= 0);
+        last = (cmd.rudder_rad, cmd.throttle_pct);
+    }
+    assert!(last.0.abs() < 0.05, "straight on: rudder {}", last.0);
+    assert!(last.1 > 5.0, "throttle {}", last.1);
+}
+
+#[test]
+fn obstacle_dead_ahead_turns_away() {
+    let mut seq = started(EAST);
+    let buoy = [(20.0, 0.0), (20.5, 0.0), (20.0, 0.5), (20.0, -0.5)];
+    feed(&mut seq, 100 * MS, &buoy);
+    let (cmd, status) = seq.cycle("test");
+    let arcs = seq.arcs().arcs().to_vec();
+    let straight = (0..arcs.len())
+        .min_by(|&a, &b| arcs[a].curvature.abs().total_cmp(&arcs[b].curvature.abs()))
+        .unwrap();
+    assert!(
+        status.arc_blocked(straight),
+        "straight arc {straight} blocked"
+    );
+    assert!(status.chosen_arc >= 0);
+    assert!(!status.arc_blocked(status.chosen_arc as usize));
+    assert!(arcs[status.chosen_arc as usize].direction.abs() > 0.05);
+    assert_eq!(cmd.mode, command_mode::NAVIGATING);
+    // Steering towards the chosen side.
+    for k in 2..20 {
+        feed(&mut seq, k * 100 * MS, &buoy);
+        seq.cycle("test");
+    }
+    let (cmd, status) = seq.cycle("test");
+    let side = arcs[status.chosen_arc as usize].direction.signum();
+    assert_eq!(
+        (cmd.rudder_rad as f64).signum(),
+        side,
+        "rudder {}",
+        cmd.rudder_rad
+    );
+}
+
+#[test]
+fn everything_blocked_slows_stops_and_turns_away() {
+    let mut seq = started(&EAST.replace("speed_mps = 5.0", "speed_mps = 10.0"));
+    // Get going first.
+    for k in 1..=30 {
+        feed(&mut seq, k * 100 * MS, &[]);
+        seq.cycle("test");
+    }
+    let cruising = seq.cycle("test").0.throttle_pct;
+    assert!(cruising > 15.0, "{cruising}");
+    // A wall close ahead, more of it to starboard (south) than to port.
+    let mut obstacles = wall(6.0);
+    obstacles.extend((0..20).map(|i| (3.0, -3.0 - i as f64 * 0.5)));
+    let t0 = 31 * 100 * MS;
+    feed(&mut seq, t0, &obstacles);
+    let (cmd, status) = seq.cycle("test");
+    assert_eq!(cmd.mode, command_mode::BLOCKED);
+    assert_eq!(status.chosen_arc, -1);
+    assert!(status.arc_blocked(0) && status.arc_blocked(63));
+    assert!(
+        cmd.throttle_pct <= 15.0,
+        "slowed at once: {}",
+        cmd.throttle_pct
+    );
+    let mut cmd = cmd;
+    for k in 1..=40 {
+        feed(&mut seq, t0 + k * 100 * MS, &obstacles);
+        cmd = seq.cycle("test").0;
+        assert_eq!(cmd.mode, command_mode::BLOCKED);
+    }
+    assert_eq!(cmd.throttle_pct, 0.0, "stopped after blocked_slow_s");
+    assert!(
+        cmd.rudder_rad > 0.5,
+        "hard to port, away from the starboard obstacles: {}",
+        cmd.rudder_rad
+    );
+}
+
+#[test]
+fn watchdog_stops_on_stale_ins_and_recovers() {
+    let mut seq = started(EAST);
+    for k in 1..=20 {
+        feed(&mut seq, k * 100 * MS, &[]);
+        seq.cycle("test");
+    }
+    // INS stops; maps keep coming.
+    let mut t = 20 * 100 * MS;
+    let mut cmd = seq.cycle("test").0;
+    for _ in 0..10 {
+        t += 100 * MS;
+        let (h, c) = map(t, &[]);
+        seq.on_map(&h, &c).unwrap();
+        let (c, status) = seq.cycle("test");
+        cmd = c;
+        if cmd.mode == command_mode::SAFE_STOP {
+            assert_eq!(status.stale_inputs, watchdog::INS);
+        }
+    }
+    assert_eq!(cmd.mode, command_mode::SAFE_STOP);
+    assert_eq!(cmd.throttle_pct, 0.0);
+    // INS returns: control resumes.
+    for _ in 0..20 {
+        t += 100 * MS;
+        feed(&mut seq, t, &[]);
+        cmd = seq.cycle("test").0;
+    }
+    assert_eq!(cmd.mode, command_mode::NAVIGATING);
+    assert!(cmd.throttle_pct > 0.0);
+}
+
+#[test]
+fn nan_ins_is_refused_and_an_invalid_mission_leaves_the_running_one() {
+    let mut seq = started(EAST);
+    let mut bad = ins(MS, 0.0, 1.0);
+    bad.pose.yaw = f64::NAN;
+    assert!(seq.on_ins(&bad).unwrap_err().to_string().contains("NaN"));
+    let reply = seq.request(
+        messages::mission_action::LOAD,
+        b"[[step]]\ntype = \"goto\"\nwaypoints = [[1.0, 2.0]]\nspeed_mps = 0\n",
+    );
+    assert_eq!(reply.accepted, 0);
+    assert!(
+        reply.message.as_str().contains("speed_mps"),
+        "{}",
+        reply.message
+    );
+    let status = seq.request(messages::mission_action::STATUS, b"");
+    assert!(
+        status.message.as_str().contains("running"),
+        "{}",
+        status.message
+    );
+    assert_eq!(status.step, 0);
+    assert_eq!(
+        seq.request(messages::mission_action::PAUSE, b"").accepted,
+        1
+    );
+    feed(&mut seq, 100 * MS, &[]);
+    let (cmd, status) = seq.cycle("test");
+    assert_eq!(
+        (cmd.mode, cmd.throttle_pct, status.paused),
+        (command_mode::IDLE, 0.0, 1)
+    );
+    assert_eq!(
+        seq.request(messages::mission_action::ABORT, b"").accepted,
+        1
+    );
+    assert_eq!(
+        seq.request(messages::mission_action::RESUME, b"").accepted,
+        0
+    );
+}
