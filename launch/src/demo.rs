@@ -2,12 +2,12 @@
 //! domain of its own, until the simulator's scenario time is up; then a summary. The demo watches the
 //! set like any other tool: it subscribes to topics and asks the supervisor for `ps`.
 
-use crate::control::{self, Reply, Request, ServiceStatus};
+use crate::control::ServiceStatus;
+use crate::session::{has_stopped, percentile, Session};
 use messages::topics;
 use runtime::Ports;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
@@ -54,55 +54,37 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         None => default_set()?,
     };
     let parsed = crate::launchfile::ProcessSet::load(&set)?;
-    std::fs::create_dir_all(&args.out)?;
-    let domain = format!("demo{}", std::process::id());
-    let run_dir = std::env::temp_dir().join(format!("usv-demo-{}", std::process::id()));
-    std::env::set_var(runtime::domain::DOMAIN_ENV, &domain);
-    std::env::set_var("USV_RUN_DIR", &run_dir);
-    let log_path = args.out.join("usv.log");
-    let log = std::fs::File::create(&log_path)?;
+    let mut session = Session::start(&set, &args.out, "demo")?;
     println!(
         "demo: set '{}' ({} services) from {}; logs in {}",
         parsed.name,
         parsed.services.len(),
         set.display(),
-        log_path.display()
+        session.log.display()
     );
-    let mut supervisor = Command::new(std::env::current_exe()?)
-        .arg("up")
-        .arg(&set)
-        .stdout(log.try_clone()?)
-        .stderr(log)
-        .stdin(Stdio::null())
-        .spawn()?;
-
-    let result = watch(&domain, &args, &mut supervisor);
-    // Always take the set down, even when watching failed.
-    let down = control::call(Some(&domain), &Request::Down, Duration::from_secs(30));
-    let _ = supervisor.wait();
-    let _ = std::fs::remove_dir_all(&run_dir);
-    let (watch, services, wall) = result?;
-    down?;
+    let (watch, services, wall) = watch(&mut session, &args)?;
+    let log = session.log.clone();
+    session.down()?;
     print_summary(&parsed.name, &watch, &services, wall);
+    // The set's recorder writes here (see the demo launch file).
+    let recording = set
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join("../../out/demo/demo.mcap");
+    if recording.exists() {
+        print_recording(&recording)?;
+    }
     anyhow::ensure!(
         watch.frames > 0 && watch.disparities > 0,
         "the demo produced no frames or no disparity: see {}",
-        log_path.display()
+        log.display()
     );
     Ok(())
 }
 
-fn ps(domain: &str) -> anyhow::Result<Vec<ServiceStatus>> {
-    match control::call(Some(domain), &Request::Ps, Duration::from_secs(5))? {
-        Reply::Ps { services, .. } => Ok(services),
-        other => anyhow::bail!("unexpected reply {other:?}"),
-    }
-}
-
 fn watch(
-    domain: &str,
+    session: &mut Session,
     args: &DemoArgs,
-    supervisor: &mut std::process::Child,
 ) -> anyhow::Result<(Watch, Vec<ServiceStatus>, Duration)> {
     let started = Instant::now();
     let deadline = started + Duration::from_secs(args.timeout_s);
@@ -114,9 +96,7 @@ fn watch(
     let mut last_report = Instant::now();
     let mut services = Vec::new();
     loop {
-        if let Some(status) = supervisor.try_wait()? {
-            anyhow::bail!("the supervisor exited early ({status})");
-        }
+        session.check_alive()?;
         while let Some(seq) = frames.receive()?.map(|s| s.user_header().hdr.seq) {
             w.frames += 1;
             w.frame_arrival.insert(seq, Instant::now());
@@ -140,7 +120,7 @@ fn watch(
         }
         if last_report.elapsed() >= Duration::from_secs(1) {
             last_report = Instant::now();
-            if let Ok(s) = ps(domain) {
+            if let Ok(s) = session.ps() {
                 services = s;
             }
             println!(
@@ -149,10 +129,7 @@ fn watch(
                 w.frames,
                 w.disparities
             );
-            let source_done = services
-                .iter()
-                .any(|s| s.name == "sim" && s.state.starts_with("stopped"));
-            if source_done {
+            if has_stopped(&services, "sim") {
                 break;
             }
         }
@@ -161,12 +138,6 @@ fn watch(
         std::thread::sleep(Duration::from_millis(5));
     }
     Ok((w, services, started.elapsed()))
-}
-
-fn percentile(values: &[f64], q: f64) -> Option<f64> {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    (!v.is_empty()).then(|| v[((v.len() - 1) as f64 * q).round() as usize])
 }
 
 fn print_summary(set: &str, w: &Watch, services: &[ServiceStatus], wall: Duration) {
@@ -208,4 +179,44 @@ fn print_summary(set: &str, w: &Watch, services: &[ServiceStatus], wall: Duratio
             s.state
         );
     }
+}
+
+/// Reads the recording's summary section back: proves the file is complete and shows what is in it.
+fn print_recording(path: &Path) -> anyhow::Result<()> {
+    let bytes = std::fs::read(path)?;
+    let summary = mcap::Summary::read(&bytes)?
+        .ok_or_else(|| anyhow::anyhow!("{} has no summary section", path.display()))?;
+    let stats = summary
+        .stats
+        .ok_or_else(|| anyhow::anyhow!("{} has no statistics", path.display()))?;
+    println!(
+        "recording {} ({:.1} MB): {} messages on {} channels, {} chunks",
+        path.canonicalize()?.display(),
+        bytes.len() as f64 / 1e6,
+        stats.message_count,
+        stats.channel_count,
+        stats.chunk_count
+    );
+    let mut rows: Vec<_> = summary
+        .channels
+        .values()
+        .map(|c| {
+            let n = stats
+                .channel_message_counts
+                .get(&c.id)
+                .copied()
+                .unwrap_or(0);
+            let schema = c
+                .schema
+                .as_ref()
+                .map_or("", |s| s.name.as_str())
+                .to_string();
+            (c.topic.clone(), schema, n)
+        })
+        .collect();
+    rows.sort();
+    for (topic, schema, n) in rows {
+        println!("  {topic:<40} {schema:<24} {n:>6}");
+    }
+    Ok(())
 }

@@ -4,8 +4,11 @@ mod bench;
 mod child;
 mod control;
 mod demo;
+mod eval;
 mod inspect;
 mod launchfile;
+mod mission;
+mod session;
 mod supervisor;
 
 use clap::{Parser, Subcommand};
@@ -32,6 +35,8 @@ struct Cli {
 enum Cmd {
     /// Run the demo: the demo process set on a simulated scenario, then a summary.
     Demo(demo::DemoArgs),
+    /// Run scenarios lock-step through the stack and report metrics against ground truth.
+    Eval(eval::EvalArgs),
     /// Start a process set from a launch file and supervise it until `usv down` or Ctrl-C.
     Up { set: PathBuf },
     /// Stop the running set: SIGTERM, grace period, SIGKILL, then sweep stale shared memory.
@@ -75,9 +80,19 @@ enum Cmd {
         #[arg(long)]
         count: Option<u64>,
     },
+    /// Record the topics of the running set to MCAP (runs the `recorder` program; see `recorder --help`).
+    Record {
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
+    /// Replay an MCAP recording into the running set (runs `sensors replay`; see `sensors replay --help`).
+    Replay {
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
     /// Reproduce the project's performance figures on this machine.
     Bench {
-        /// Which benchmark: ipc.
+        /// Which benchmark: ipc, recorder.
         name: String,
         /// One JSON object per line per figure.
         #[arg(long)]
@@ -95,6 +110,11 @@ enum Cmd {
         size: usize,
         #[arg(long)]
         socket: Option<String>,
+    },
+    /// Load, pause, resume or abort the sequencer's mission, or ask what it is doing.
+    Mission {
+        #[command(subcommand)]
+        action: mission::MissionCmd,
     },
 }
 
@@ -121,6 +141,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             supervisor::Supervisor::new(set, domain.clone()).run()
         }
         Cmd::Demo(args) => demo::run(args),
+        Cmd::Eval(args) => eval::run(args),
         Cmd::Down => print_reply(call(Request::Down)?),
         Cmd::Ps { json } => match call(Request::Ps)? {
             Reply::Ps { set, services } if json => {
@@ -171,6 +192,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 args,
             })?)
         }
+        Cmd::Record { args } => exec("recorder", &args),
+        Cmd::Replay { args } => exec("sensors", &[vec!["replay".to_string()], args].concat()),
         Cmd::Topics { json } => inspect::list_topics(json),
         Cmd::Hz {
             topic,
@@ -186,6 +209,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             let figures = match name.as_str() {
                 "ipc" => bench::ipc::run(quick)?,
+                "recorder" => bench::recorder(quick),
                 other => anyhow::bail!(
                     "unknown benchmark '{other}'; available: {}",
                     bench::NAMES.join(", ")
@@ -195,8 +219,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 for f in &figures {
                     println!("{}", f.json_line(&name));
                 }
-            } else {
+            } else if name == "ipc" {
                 bench::ipc::print_table(&figures);
+            } else {
+                bench::print_plain(&figures);
             }
             let config = runtime::domain::config()?;
             runtime::cleanup::sweep_dead_nodes(&config);
@@ -206,7 +232,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Cmd::BenchPeer { wake, size, socket } => bench::ipc::peer(wake, size, socket.as_deref()),
+        Cmd::Mission { action } => mission::run(action),
     }
+}
+
+/// Replaces this process with one of the stack's programs (found next to `usv` or on PATH), so it
+/// gets signals and the exit status directly.
+fn exec(program: &str, args: &[String]) -> anyhow::Result<()> {
+    use std::os::unix::process::CommandExt;
+    let path =
+        launchfile::resolve_program(program, std::path::Path::new(".")).ok_or_else(|| {
+            anyhow::anyhow!("the `{program}` program was not found next to usv or on PATH")
+        })?;
+    Err(std::process::Command::new(path).args(args).exec().into())
 }
 
 fn print_reply(reply: Reply) -> anyhow::Result<()> {

@@ -39,4 +39,19 @@ impl Figure {
     }
 }
 
-pub const NAMES: &[&str] = &["ipc"];
+pub const NAMES: &[&str] = &["ipc", "recorder"];
+
+/// `usv bench recorder`: the recorder's MCAP writer against a plain file write of the same bytes.
+pub fn recorder(quick: bool) -> Vec<Figure> {
+    recorder::bench::run(quick)
+        .into_iter()
+        .map(|(name, value, unit)| Figure::new(name, value, unit))
+        .collect()
+}
+
+/// Prints figures as `name: value unit` lines.
+pub fn print_plain(figures: &[Figure]) {
+    for f in figures {
+        println!("{:<40} {:>12.2} {}", f.name, f.value, f.unit);
+    }
+}

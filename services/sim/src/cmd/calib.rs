@@ -13,9 +13,9 @@ use std::path::PathBuf;
 pub struct Args {
     /// Scenario file (TOML).
     scenario: PathBuf,
-    /// Stereo head name.
+    /// Stereo head name (default: the first mono head, else the first head).
     #[arg(long)]
-    head: String,
+    head: Option<String>,
     /// Output calibration file.
     #[arg(long)]
     out: PathBuf,
@@ -24,11 +24,18 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let sim = Simulator::from_file(&args.scenario)
         .with_context(|| format!("loading {}", args.scenario.display()))?;
-    let index = sim
-        .world
-        .head_index(&args.head)
-        .with_context(|| format!("no head `{}` in the scenario", args.head))?;
-    let h = &sim.world.heads[index];
+    let heads = &sim.world.heads;
+    let index = match &args.head {
+        Some(name) => sim
+            .world
+            .head_index(name)
+            .with_context(|| format!("no head `{name}` in the scenario"))?,
+        None => heads
+            .iter()
+            .position(|h| h.encoding == sim::Encoding::Mono8)
+            .unwrap_or(0),
+    };
+    let h = &heads[index];
     let f = h.focal_px();
     let (cx, cy) = ((h.width as f64 - 1.0) / 2.0, (h.height as f64 - 1.0) / 2.0);
     // The left camera sits half a baseline to the head's left (+y of the head frame).
@@ -70,5 +77,16 @@ pub fn run(args: Args) -> Result<()> {
         writeln!(text, "\n[{side}]\nfx = {f}\nfy = {f}\ncx = {cx}\ncy = {cy}")?;
     }
     std::fs::write(&args.out, text).with_context(|| format!("writing {}", args.out.display()))?;
+    // For tools that generate the stereo service's configuration.
+    println!(
+        "{{\"head\": \"{}\", \"mount\": {{\"position\": [{}, {}, {}], \"roll_deg\": {}, \"pitch_deg\": {}, \"yaw_deg\": {}}}}}",
+        h.name,
+        left.x,
+        left.y,
+        left.z,
+        roll.to_degrees(),
+        pitch.to_degrees(),
+        yaw.to_degrees()
+    );
     Ok(())
 }

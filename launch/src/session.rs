@@ -1,0 +1,114 @@
+//! A process set run by a tool (`usv demo`, `usv eval`): `usv up` in a child process, in a domain and
+//! run directory of its own, with its output in a log file; queried over the control socket and
+//! always taken down, even when the tool fails half-way.
+
+use crate::control::{self, Reply, Request, ServiceStatus};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+pub struct Session {
+    pub domain: String,
+    pub log: PathBuf,
+    run_dir: PathBuf,
+    supervisor: Child,
+    down: bool,
+}
+
+impl Session {
+    /// Starts `usv up set`; `tag` names the domain and the log file in `out_dir`. The domain becomes
+    /// this process's domain too, so tool nodes created afterwards see the set's topics.
+    pub fn start(set: &Path, out_dir: &Path, tag: &str) -> anyhow::Result<Self> {
+        std::fs::create_dir_all(out_dir)?;
+        let domain = format!("{tag}{}", std::process::id());
+        let run_dir = std::env::temp_dir().join(format!("usv-{domain}"));
+        std::env::set_var(runtime::domain::DOMAIN_ENV, &domain);
+        std::env::set_var("USV_RUN_DIR", &run_dir);
+        let log = out_dir.join(format!("{tag}.log"));
+        let file = std::fs::File::create(&log)?;
+        let supervisor = Command::new(std::env::current_exe()?)
+            .arg("up")
+            .arg(set)
+            .stdout(file.try_clone()?)
+            .stderr(file)
+            .stdin(Stdio::null())
+            .spawn()?;
+        let mut session = Self {
+            domain,
+            log,
+            run_dir,
+            supervisor,
+            down: false,
+        };
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while session.ps().is_err() {
+            session.check_alive()?;
+            anyhow::ensure!(
+                Instant::now() < deadline,
+                "the process set did not come up: see {}",
+                session.log.display()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Ok(session)
+    }
+
+    pub fn ps(&self) -> anyhow::Result<Vec<ServiceStatus>> {
+        match control::call(Some(&self.domain), &Request::Ps, Duration::from_secs(5))? {
+            Reply::Ps { services, .. } => Ok(services),
+            other => anyhow::bail!("unexpected reply {other:?}"),
+        }
+    }
+
+    /// Fails if the supervisor has exited.
+    pub fn check_alive(&mut self) -> anyhow::Result<()> {
+        if let Some(status) = self.supervisor.try_wait()? {
+            anyhow::bail!(
+                "the supervisor exited early ({status}): see {}",
+                self.log.display()
+            );
+        }
+        Ok(())
+    }
+
+    /// `usv down` and wait for the supervisor.
+    pub fn down(mut self) -> anyhow::Result<()> {
+        self.down = true;
+        let reply = control::call(Some(&self.domain), &Request::Down, Duration::from_secs(30));
+        let _ = self.supervisor.wait();
+        let _ = std::fs::remove_dir_all(&self.run_dir);
+        match reply? {
+            Reply::Error { message } => anyhow::bail!(message),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// True once the service `name` has exited (a source whose scenario or log is over).
+pub fn has_stopped(services: &[ServiceStatus], name: &str) -> bool {
+    services
+        .iter()
+        .any(|s| s.name == name && s.state.starts_with("stopped"))
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        if !self.down {
+            let _ = control::call(Some(&self.domain), &Request::Down, Duration::from_secs(10));
+            if self.supervisor.try_wait().ok().flatten().is_none() {
+                std::thread::sleep(Duration::from_secs(1));
+                // Children die with it (PR_SET_PDEATHSIG).
+                let _ = self.supervisor.kill();
+                let _ = self.supervisor.wait();
+            }
+            let _ = std::fs::remove_dir_all(&self.run_dir);
+        }
+    }
+}
+
+/// Value at quantile `q` (nearest rank) of unsorted values.
+pub fn percentile(values: &[f64], q: f64) -> Option<f64> {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[((v.len() - 1) as f64 * q).round() as usize])
+}
