@@ -3,7 +3,7 @@
 //! set like any other tool: it subscribes to topics and asks the supervisor for `ps`.
 
 use crate::control::ServiceStatus;
-use crate::session::{has_stopped, percentile, Session};
+use crate::session::{checkout_file, has_stopped, percentile, Session};
 use messages::topics;
 use runtime::Ports;
 use std::collections::BTreeMap;
@@ -23,21 +23,6 @@ pub struct DemoArgs {
     timeout_s: u64,
 }
 
-/// The checkout's `launch/sets/demo.toml`: next to the build output (`<repo>/target/release/usv`) or
-/// under the current directory.
-fn default_set() -> anyhow::Result<PathBuf> {
-    let relative = Path::new("launch/sets/demo.toml");
-    let from_exe = std::env::current_exe()?
-        .ancestors()
-        .nth(3)
-        .map(|repo| repo.join(relative));
-    from_exe
-        .into_iter()
-        .chain([relative.to_path_buf()])
-        .find(|p| p.exists())
-        .ok_or_else(|| anyhow::anyhow!("launch/sets/demo.toml not found; pass --set"))
-}
-
 #[derive(Default)]
 struct Watch {
     frames: u64,
@@ -51,7 +36,7 @@ struct Watch {
 pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     let set = match &args.set {
         Some(p) => p.clone(),
-        None => default_set()?,
+        None => checkout_file("launch/sets/demo.toml")?,
     };
     let parsed = crate::launchfile::ProcessSet::load(&set)?;
     let mut session = Session::start(&set, &args.out, "demo")?;

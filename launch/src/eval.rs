@@ -1,6 +1,7 @@
 //! `usv eval <scenario...>`: runs each scenario lock-step through a process set (simulator -> stereo)
 //! and reports metrics against the simulator's ground truth: frames, rates, per-service processing
-//! time, and stereo range error by range beside the theoretical sigma_Z = Z^2 sigma_d / (f B).
+//! time, and stereo range error on solid surfaces (objects, terrain) by range beside the theoretical
+//! sigma_Z = Z^2 sigma_d / (f B).
 
 use crate::session::{has_stopped, percentile, Session};
 use messages::topics;
@@ -221,17 +222,27 @@ fn eval_scenario(
     }))
 }
 
-/// Accumulates range errors of one disparity image against the truth disparity of the same frame.
+/// Whether a pixel of this truth class is a solid surface. Water and sky are left out: on water the
+/// matcher sees reflections (a virtual image below the surface), which is the water cue of perception,
+/// not a range error.
+fn is_solid(class: f32) -> bool {
+    use messages::truth_class as c;
+    ![c::NONE, c::SKY, c::WATER, c::PUDDLE].contains(&(class as u8))
+}
+
+/// Accumulates range errors of one disparity image against the truth of the same frame
+/// (`truth` = disparity plane then label plane).
 fn compare(m: &mut Metrics, h: &messages::DisparityHeader, estimate: &[f32], truth: &[f32]) {
     let fb = h.camera.fx * h.camera.baseline_m;
     // Only comparable when the rectified image is the raw one (ideal simulated heads).
-    if truth.len() != estimate.len() || fb <= 0.0 {
+    if truth.len() != 2 * estimate.len() || fb <= 0.0 {
         return;
     }
+    let (disparity, labels) = truth.split_at(estimate.len());
     m.focal_baseline = fb;
     m.compared_frames += 1;
-    for (&d_true, &d_est) in truth.iter().zip(estimate) {
-        if !(d_true.is_finite() && d_true > 0.0) {
+    for ((&d_true, &label), &d_est) in disparity.iter().zip(labels).zip(estimate) {
+        if !(d_true.is_finite() && d_true > 0.0) || !is_solid(label) {
             continue;
         }
         let z_true = fb / d_true as f64;
@@ -270,8 +281,8 @@ fn print_report(r: &serde_json::Value) {
     for b in r["stereo_range_error"].as_array().into_iter().flatten() {
         println!(
             "{:>8} {:>9} {:>9} {:>14} {:>10} {:>14}",
-            b["range_m"],
-            b["pixels"],
+            b["range_m"].as_f64().unwrap_or(0.0),
+            b["pixels"].as_u64().unwrap_or(0),
             f(&b["density"], 100.0),
             f(&b["median_abs_error_m"], 1.0),
             f(&b["rms_error_m"], 1.0),

@@ -92,7 +92,7 @@ enum Cmd {
     },
     /// Reproduce the project's performance figures on this machine.
     Bench {
-        /// Which benchmark: ipc, recorder.
+        /// Which benchmark: ipc, recorder, sim.
         name: String,
         /// One JSON object per line per figure.
         #[arg(long)]
@@ -209,7 +209,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             let figures = match name.as_str() {
                 "ipc" => bench::ipc::run(quick)?,
-                "recorder" => bench::recorder(quick),
+                "recorder" => bench::recorder(quick)?,
+                "sim" => bench::sim::run(quick)?,
                 other => anyhow::bail!(
                     "unknown benchmark '{other}'; available: {}",
                     bench::NAMES.join(", ")

@@ -112,3 +112,18 @@ pub fn percentile(values: &[f64], q: f64) -> Option<f64> {
     v.sort_by(f64::total_cmp);
     (!v.is_empty()).then(|| v[((v.len() - 1) as f64 * q).round() as usize])
 }
+
+/// A file of this checkout: beside the build output (`<checkout>/target/release/usv`) or under the
+/// current directory.
+pub fn checkout_file(relative: &str) -> anyhow::Result<PathBuf> {
+    let relative = Path::new(relative);
+    let from_exe = std::env::current_exe()?
+        .ancestors()
+        .nth(3)
+        .map(|repo| repo.join(relative));
+    from_exe
+        .into_iter()
+        .chain([relative.to_path_buf()])
+        .find(|p| p.exists())
+        .ok_or_else(|| anyhow::anyhow!("{} not found in this checkout", relative.display()))
+}

@@ -27,7 +27,7 @@ fn commands_without_a_running_set_say_so() {
 fn unknown_benchmark_lists_the_available_ones() {
     let out = usv().args(["bench", "nope"]).output().unwrap();
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("available: ipc"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("available: ipc, recorder, sim"));
 }
 
 #[test]

@@ -2,6 +2,7 @@
 //! user's hardware. Every benchmark prints a table, or with `--json` one JSON object per figure.
 
 pub mod ipc;
+pub mod sim;
 
 use serde_json::json;
 
@@ -39,14 +40,92 @@ impl Figure {
     }
 }
 
-pub const NAMES: &[&str] = &["ipc", "recorder"];
+pub const NAMES: &[&str] = &["ipc", "recorder", "sim"];
 
-/// `usv bench recorder`: the recorder's MCAP writer against a plain file write of the same bytes.
-pub fn recorder(quick: bool) -> Vec<Figure> {
-    recorder::bench::run(quick)
+/// `usv bench recorder`: the recorder's MCAP writer against a plain file write of the same bytes,
+/// then the recorder process live: 2 heads x 1280x960 mono pairs at 10 Hz over shared memory.
+pub fn recorder(quick: bool) -> anyhow::Result<Vec<Figure>> {
+    let mut figures: Vec<Figure> = recorder::bench::run(quick)
         .into_iter()
         .map(|(name, value, unit)| Figure::new(name, value, unit))
-        .collect()
+        .collect();
+    figures.extend(recorder_live(if quick { 2.0 } else { 10.0 })?);
+    Ok(figures)
+}
+
+fn recorder_live(seconds: f64) -> anyhow::Result<Vec<Figure>> {
+    use messages::{topics, Header, Name, PixelEncoding, StereoFrameHeader};
+    use runtime::Ports;
+    use std::time::{Duration, Instant};
+    let (width, height) = (1280u32, 960u32);
+    let dir = tempfile::tempdir()?;
+    let file = dir.path().join("live.mcap");
+    let program = crate::launchfile::resolve_program("recorder", std::path::Path::new("."))
+        .ok_or_else(|| anyhow::anyhow!("the `recorder` program was not found next to usv"))?;
+    let node = runtime::tool_node("usv-bench-rec")?;
+    let mut frames = topics::STEREO_FRAME.publisher(&node)?;
+    let recorder = std::process::Command::new(program)
+        .args([
+            "--topics",
+            topics::STEREO_FRAME.name,
+            "--no-foxglove",
+            "--json",
+            "--out",
+        ])
+        .arg(&file)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()?;
+    let connect = Instant::now() + Duration::from_secs(10);
+    while frames.subscriber_count() == 0 {
+        anyhow::ensure!(Instant::now() < connect, "the recorder did not subscribe");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let plane = (width * height) as usize;
+    let periods = (seconds * 10.0) as u64;
+    let start = Instant::now();
+    for k in 0..periods {
+        for head in ["port", "starboard"] {
+            let mut sample = frames.loan_slice(2 * plane)?;
+            sample.payload_mut().fill(k as u8);
+            *sample.user_header_mut() = StereoFrameHeader {
+                hdr: Header::new(frames.next_seq(), k * 100_000_000 + 1, "bench"),
+                head: Name::new(head),
+                width,
+                height,
+                stride: width,
+                encoding: PixelEncoding::Mono8 as u32,
+            };
+            frames.send(sample)?;
+        }
+        let next = start + Duration::from_millis(100 * (k + 1));
+        std::thread::sleep(next.saturating_duration_since(Instant::now()));
+    }
+    // SAFETY: plain syscall on our own child.
+    unsafe { libc::kill(recorder.id() as libc::pid_t, libc::SIGTERM) };
+    let out = recorder.wait_with_output()?;
+    anyhow::ensure!(out.status.success(), "recorder failed: {}", out.status);
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let topic = report["topics"]
+        .as_array()
+        .and_then(|t| t.iter().find(|t| t["topic"] == topics::STEREO_FRAME.name))
+        .ok_or_else(|| anyhow::anyhow!("no stereo frames in the recorder's report"))?;
+    let recorded = topic["messages"].as_u64().unwrap_or(0);
+    let sent = 2 * periods;
+    Ok(vec![
+        Figure::new("live_frames_sent", sent as f64, "frames"),
+        Figure::new("live_frames_recorded", recorded as f64, "frames"),
+        Figure::new(
+            "live_frames_dropped",
+            topic["dropped"].as_f64().unwrap_or(-1.0),
+            "frames",
+        ),
+        Figure::new(
+            "live_rate_mb_per_s",
+            recorded as f64 * 2.0 * plane as f64 / 1e6 / seconds,
+            "MB/s",
+        ),
+    ])
 }
 
 /// Prints figures as `name: value unit` lines.
