@@ -140,50 +140,63 @@ fn eval_scenario(
 ) -> anyhow::Result<serde_json::Value> {
     let (set, head) = write_set(scenario, name, args)?;
     let mut session = Session::start(&set, set.parent().unwrap(), "eval")?;
-    let node = runtime::tool_node("usv-eval")?;
-    let frames = topics::STEREO_FRAME.subscriber(&node)?;
-    let disparity = topics::DISPARITY.subscriber(&node)?;
-    let truth = topics::TRUTH_IMAGE.subscriber(&node)?;
-    let shutdown = runtime::Shutdown::install()?;
-    let started = Instant::now();
-    let mut metrics = Metrics::default();
-    // Truth images by stamp until their disparity arrives.
-    let mut pending: BTreeMap<u64, Vec<f32>> = BTreeMap::new();
-    let mut last_poll = Instant::now();
-    let services = loop {
-        session.check_alive()?;
-        while frames.receive()?.is_some() {
-            metrics.frames += 1;
-        }
-        while let Some(sample) = truth.receive()? {
-            let n = sample.user_header().width as usize * sample.user_header().height as usize;
-            pending.insert(
-                sample.user_header().hdr.stamp_ns,
-                sample.payload()[..n].to_vec(),
-            );
-            metrics.truth_frames += 1;
-        }
-        while let Some(sample) = disparity.receive()? {
-            metrics.disparities += 1;
-            let h = sample.user_header();
-            if let Some(truth) = pending.remove(&h.hdr.stamp_ns) {
-                compare(&mut metrics, h, sample.payload(), &truth);
+    // The watcher's node must be gone before the set is taken down, so the domain is left clean.
+    let (metrics, services, wall) = {
+        let node = runtime::tool_node("usv-eval")?;
+        let frames = topics::STEREO_FRAME.subscriber(&node)?;
+        let disparity = topics::DISPARITY.subscriber(&node)?;
+        let truth = topics::TRUTH_IMAGE.subscriber(&node)?;
+        let shutdown = runtime::Shutdown::install()?;
+        let started = Instant::now();
+        let mut metrics = Metrics::default();
+        // Truth images and disparities by stamp until their partner arrives (the simulator renders
+        // truth after publishing the frame, so either may come first).
+        let mut truths: BTreeMap<u64, Vec<f32>> = BTreeMap::new();
+        let mut estimates: BTreeMap<u64, (messages::DisparityHeader, Vec<f32>)> = BTreeMap::new();
+        let mut last_poll = Instant::now();
+        let services = loop {
+            session.check_alive()?;
+            while frames.receive()?.is_some() {
+                metrics.frames += 1;
             }
-        }
-        while pending.len() > 16 {
-            pending.pop_first();
-        }
-        if last_poll.elapsed() > Duration::from_millis(500) {
-            last_poll = Instant::now();
-            let services = session.ps()?;
-            if has_stopped(&services, "sim") {
-                break services;
+            while let Some(sample) = truth.receive()? {
+                let stamp = sample.user_header().hdr.stamp_ns;
+                metrics.truth_frames += 1;
+                match estimates.remove(&stamp) {
+                    Some((h, estimate)) => compare(&mut metrics, &h, &estimate, sample.payload()),
+                    None => {
+                        truths.insert(stamp, sample.payload().to_vec());
+                    }
+                }
             }
-        }
-        anyhow::ensure!(!shutdown.requested(), "interrupted");
-        std::thread::sleep(Duration::from_millis(2));
+            while let Some(sample) = disparity.receive()? {
+                metrics.disparities += 1;
+                let h = *sample.user_header();
+                match truths.remove(&h.hdr.stamp_ns) {
+                    Some(truth) => compare(&mut metrics, &h, sample.payload(), &truth),
+                    None => {
+                        estimates.insert(h.hdr.stamp_ns, (h, sample.payload().to_vec()));
+                    }
+                }
+            }
+            while truths.len() > 16 {
+                truths.pop_first();
+            }
+            while estimates.len() > 16 {
+                estimates.pop_first();
+            }
+            if last_poll.elapsed() > Duration::from_millis(500) {
+                last_poll = Instant::now();
+                let services = session.ps()?;
+                if has_stopped(&services, "sim") {
+                    break services;
+                }
+            }
+            anyhow::ensure!(!shutdown.requested(), "interrupted");
+            std::thread::sleep(Duration::from_millis(2));
+        };
+        (metrics, services, started.elapsed().as_secs_f64())
     };
-    let wall = started.elapsed().as_secs_f64();
     session.down()?;
 
     let service_figures: Vec<_> = services
@@ -242,7 +255,7 @@ fn compare(m: &mut Metrics, h: &messages::DisparityHeader, estimate: &[f32], tru
     m.focal_baseline = fb;
     m.compared_frames += 1;
     for ((&d_true, &label), &d_est) in disparity.iter().zip(labels).zip(estimate) {
-        if !(d_true.is_finite() && d_true > 0.0) || !is_solid(label) {
+        if !(d_true.is_finite() && d_true > 0.0 && is_solid(label)) {
             continue;
         }
         let z_true = fb / d_true as f64;

@@ -77,6 +77,8 @@ impl Session {
         let reply = control::call(Some(&self.domain), &Request::Down, Duration::from_secs(30));
         let _ = self.supervisor.wait();
         let _ = std::fs::remove_dir_all(&self.run_dir);
+        // The supervisor keeps what is in use by live nodes (this tool's); drop those nodes first.
+        runtime::cleanup::remove_domain_leftovers(&self.domain)?;
         match reply? {
             Reply::Error { message } => anyhow::bail!(message),
             _ => Ok(()),

@@ -94,7 +94,6 @@ pub fn run(quick: bool) -> anyhow::Result<Vec<Figure>> {
         period: Duration::from_millis(10),
     });
 
-    pin_to_cpu(false);
     let mut figures = Vec::new();
     let mut p50 = std::collections::HashMap::new();
     for plan in &plans {
@@ -146,32 +145,6 @@ pub fn run(quick: bool) -> anyhow::Result<Vec<Figure>> {
         );
     }
     Ok(figures)
-}
-
-/// Pins the calling thread to one CPU (publisher on the first, peer on the last), so the two sides do
-/// not migrate between cores mid-measurement. Best effort: a failure only makes figures noisier.
-fn pin_to_cpu(last: bool) {
-    // SAFETY: sched_getaffinity/sched_setaffinity only read and write the set we pass.
-    unsafe {
-        let mut set: libc::cpu_set_t = std::mem::zeroed();
-        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
-            return;
-        }
-        let allowed: Vec<usize> = (0..libc::CPU_SETSIZE as usize)
-            .filter(|&c| libc::CPU_ISSET(c, &set))
-            .collect();
-        if allowed.len() < 2 {
-            return;
-        }
-        let cpu = if last {
-            allowed[allowed.len() - 1]
-        } else {
-            allowed[0]
-        };
-        let mut one: libc::cpu_set_t = std::mem::zeroed();
-        libc::CPU_SET(cpu, &mut one);
-        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &one);
-    }
 }
 
 fn spawn_peer(plan: &Plan, extra: &[String]) -> anyhow::Result<std::process::Child> {
@@ -252,7 +225,6 @@ fn run_uds(plan: &Plan) -> anyhow::Result<PeerReport> {
 
 /// The receiving process (`usv bench-peer`); prints its [`PeerReport`] as JSON on stdout.
 pub fn peer(wake: Wake, size: usize, socket: Option<&str>) -> anyhow::Result<()> {
-    pin_to_cpu(true);
     let mut report = PeerReport {
         latencies_ns: Vec::with_capacity(4096),
         corrupt: 0,

@@ -38,6 +38,8 @@ pub fn file_prefix(domain: Option<&str>) -> String {
 
 /// The iceoryx2 configuration for a domain.
 pub fn config_for(domain: Option<&str>) -> anyhow::Result<Config> {
+    // Reading the global config logs a warning when no iceoryx2 config file exists (the normal case).
+    quiet_iceoryx_logs();
     let mut config = Config::global_config().clone();
     if let Some(d) = domain {
         validate(d)?;
