@@ -3,7 +3,7 @@
 //! set like any other tool: it subscribes to topics and asks the supervisor for `ps`.
 
 use crate::control::ServiceStatus;
-use crate::session::{checkout_file, has_stopped, percentile, Session};
+use crate::session::{checkout_file, ensure_stack_built, has_stopped, percentile, Session};
 use messages::topics;
 use runtime::Ports;
 use std::collections::BTreeMap;
@@ -34,6 +34,7 @@ struct Watch {
 }
 
 pub fn run(args: DemoArgs) -> anyhow::Result<()> {
+    ensure_stack_built()?;
     let set = match &args.set {
         Some(p) => p.clone(),
         None => checkout_file("launch/sets/demo.toml")?,

@@ -54,6 +54,7 @@ struct Metrics {
 }
 
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    crate::session::ensure_stack_built()?;
     let mut reports = Vec::new();
     for scenario in &args.scenarios {
         let scenario = scenario

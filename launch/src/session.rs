@@ -129,3 +129,49 @@ pub fn checkout_file(relative: &str) -> anyhow::Result<PathBuf> {
         .find(|p| p.exists())
         .ok_or_else(|| anyhow::anyhow!("{} not found in this checkout", relative.display()))
 }
+
+/// The stack's programs that process sets run.
+const STACK_PROGRAMS: [&str; 5] = ["sim", "stereo", "recorder", "sensors", "sequencer"];
+
+/// Makes sure the stack's programs are built next to `usv`. `cargo run -p launch` builds only `usv`;
+/// when run that way (cargo sets `CARGO` and `CARGO_MANIFEST_DIR`), build the rest of the workspace's
+/// programs once; otherwise say what to do.
+pub fn ensure_stack_built() -> anyhow::Result<()> {
+    let exe_dir = std::env::current_exe()?
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    let missing: Vec<_> = STACK_PROGRAMS
+        .iter()
+        .filter(|p| !exe_dir.join(p).exists())
+        .collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let (Some(cargo), Some(manifest_dir)) = (
+        std::env::var_os("CARGO"),
+        std::env::var_os("CARGO_MANIFEST_DIR"),
+    ) else {
+        anyhow::bail!(
+            "programs {missing:?} are not built next to {}: run `cargo build --release --workspace`",
+            exe_dir.display()
+        );
+    };
+    let workspace = Path::new(&manifest_dir)
+        .parent()
+        .ok_or_else(|| anyhow::anyhow!("no workspace above {manifest_dir:?}"))?
+        .join("Cargo.toml");
+    let profile = if exe_dir.ends_with("debug") {
+        None
+    } else {
+        Some("--release")
+    };
+    println!("building the stack's programs (first run only): {missing:?}");
+    let status = Command::new(cargo)
+        .args(["build", "--workspace", "--bins", "--manifest-path"])
+        .arg(&workspace)
+        .args(profile)
+        .status()?;
+    anyhow::ensure!(status.success(), "building the stack's programs failed");
+    Ok(())
+}
