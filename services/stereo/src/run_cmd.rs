@@ -61,9 +61,31 @@ fn resolve(base: &Path, p: &Path) -> PathBuf {
 pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let config: StereoConfig = runtime::config::load(&args.config)?;
     let calib_path = resolve(&args.config, &config.calibration);
-    let calibration = Calibration::load(&calib_path)
-        .with_context(|| format!("calibration of head '{}'", config.head))?;
-    let mut pipeline = FramePipeline::new(&calibration, &config.matcher, config.plane.clone())?;
+    // A bad calibration is a fault of this head, not a reason to leave the set: the service stays up,
+    // rejects every frame with the reason (visible in its heartbeat and `usv ps`), and a restart after
+    // the file is fixed picks it up.
+    let pipeline = Calibration::load(&calib_path)
+        .with_context(|| {
+            format!(
+                "calibration {} of head '{}'",
+                calib_path.display(),
+                config.head
+            )
+        })
+        .and_then(|c| {
+            let pipeline = FramePipeline::new(&c, &config.matcher, config.plane.clone())?;
+            Ok((pipeline, c.width, c.height))
+        });
+    let mut pipeline = match pipeline {
+        Ok((pipeline, width, height)) => {
+            tracing::info!(head = %config.head, matcher = ?config.matcher, "stereo ready for {width}x{height} frames");
+            Ok(pipeline)
+        }
+        Err(e) => {
+            tracing::error!("{e:#}; every frame will be rejected");
+            Err(format!("{e:#}"))
+        }
+    };
 
     let mut service = Service::start("stereo")?;
     let frames = service.subscriber(&topics::STEREO_FRAME)?;
@@ -81,13 +103,6 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         ins: None,
         source: service.name().to_string(),
     };
-    tracing::info!(
-        head = %config.head,
-        matcher = ?config.matcher,
-        "stereo ready for {}x{} frames",
-        calibration.width,
-        calibration.height
-    );
     let deadline = Duration::from_millis(config.frame_deadline_ms);
     let inputs = [frames.input(Some(deadline)), ins.input(None)];
     service.run(&inputs, None, |health, wake| {
@@ -108,9 +123,16 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             }
         }
         let Some(frame) = newest else { return Ok(()) };
+        let pipeline = match &mut pipeline {
+            Ok(pipeline) => pipeline,
+            Err(fault) => {
+                health.reject(frame.user_header().hdr.stamp_ns, fault);
+                return Ok(());
+            }
+        };
         worker.process(
             health,
-            &mut pipeline,
+            pipeline,
             &mut out,
             frame.user_header(),
             frame.payload(),
