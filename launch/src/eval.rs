@@ -33,6 +33,10 @@ pub struct EvalArgs {
 
 /// Range bins of the stereo evaluation (m); a pixel counts for a bin within +-15 % of its centre.
 const RANGE_BINS: [f64; 5] = [10.0, 25.0, 50.0, 100.0, 200.0];
+/// Water-plane search for simulated waves (same as the demo's stereo configuration): the lower rows see
+/// water within ~25 m, and waves need a loose inlier band.
+const PLANE_SEARCH: &str =
+    "[plane]\nlower_fraction = 0.35\nmax_range_m = 25.0\n\n[plane.fit]\ninlier_distance = 0.25\n";
 /// Disparity noise used for the theoretical range sigma (px).
 const SIGMA_D: f64 = 0.25;
 
@@ -103,7 +107,7 @@ fn write_set(scenario: &Path, name: &str, args: &EvalArgs) -> anyhow::Result<(Pa
     std::fs::write(
         dir.join("stereo.toml"),
         format!(
-            "head = \"{head_name}\"\ncalibration = \"calib.toml\"\n\n[matcher]\nalgo = \"{}\"\n\n[mount]\nposition = {}\nroll_deg = {}\npitch_deg = {}\nyaw_deg = {}\n",
+            "head = \"{head_name}\"\ncalibration = \"calib.toml\"\n\n[matcher]\nalgo = \"{}\"\n\n[mount]\nposition = {}\nroll_deg = {}\npitch_deg = {}\nyaw_deg = {}\n\n{PLANE_SEARCH}",
             args.algo, m["position"], m["roll_deg"], m["pitch_deg"], m["yaw_deg"]
         ),
     )?;
