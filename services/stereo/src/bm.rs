@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 use crate::disparity::{
-    argmin_lr, argmin_lr_partial, check_ndisp, check_size, is_unique, lr_check_row, subpixel,
+    argmin_lr, argmin_lr_partial, check_frame, check_ndisp, is_unique, lr_check_row, subpixel,
     DisparityMap, DisparityMatcher, MatchError, DISP_SCALE, INVALID,
 };
 use crate::image::{downsample2, GrayView};
@@ -140,9 +140,7 @@ impl DisparityMatcher for BlockMatcher {
         out: &mut DisparityMap,
     ) -> Result<(), MatchError> {
         let want = (self.width, self.height);
-        check_size("left", want, (left.width(), left.height()))?;
-        check_size("right", want, (right.width(), right.height()))?;
-        check_size("output", want, (out.width, out.height))?;
+        check_frame(want, &left, &right, out)?;
         let p = &self.params;
         self.full.run(left.data(), right.data(), p, &mut out.data);
         if let Some(c) = &mut self.coarse {

@@ -88,7 +88,19 @@ pub fn build_matcher(
     })
 }
 
-pub(crate) fn check_size(
+/// Checks that a matcher's inputs and output all have the size it was built for.
+pub(crate) fn check_frame(
+    want: (usize, usize),
+    left: &GrayView<'_>,
+    right: &GrayView<'_>,
+    out: &DisparityMap,
+) -> Result<(), MatchError> {
+    check_size("left", want, (left.width(), left.height()))?;
+    check_size("right", want, (right.width(), right.height()))?;
+    check_size("output", want, (out.width, out.height))
+}
+
+fn check_size(
     which: &'static str,
     want: (usize, usize),
     got: (usize, usize),

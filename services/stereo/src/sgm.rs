@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 use crate::disparity::{
-    argmin_lr, argmin_lr_partial, check_ndisp, check_size, is_unique, lr_check_row, subpixel,
+    argmin_lr, argmin_lr_partial, check_frame, check_ndisp, is_unique, lr_check_row, subpixel,
     DisparityMap, DisparityMatcher, MatchError, INVALID,
 };
 use crate::image::GrayView;
@@ -154,9 +154,7 @@ impl DisparityMatcher for SgmMatcher {
         out: &mut DisparityMap,
     ) -> Result<(), MatchError> {
         let want = (self.width, self.height);
-        check_size("left", want, (left.width(), left.height()))?;
-        check_size("right", want, (right.width(), right.height()))?;
-        check_size("output", want, (out.width, out.height))?;
+        check_frame(want, &left, &right, out)?;
         let (w, nd) = (self.width, self.params.num_disparities);
         self.census_l
             .par_chunks_mut(w)
