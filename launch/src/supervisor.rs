@@ -33,7 +33,8 @@ struct Running {
     process: Child,
     pid: u32,
     started: Instant,
-    last_beat: Option<(Instant, Heartbeat)>,
+    /// When this process's newest heartbeat arrived (the heartbeat itself is `Managed::last_beat`).
+    last_beat_at: Option<Instant>,
     /// (arrival, processed) samples for the input rate.
     rate_samples: VecDeque<(Instant, u64)>,
     /// Set once SIGTERM was sent: SIGKILL follows at this instant.
@@ -58,10 +59,10 @@ impl Managed {
     fn state(&self) -> String {
         match &self.running {
             Some(r) if r.kill_at.is_some() => "stopping".into(),
-            Some(r) => match &r.last_beat {
-                None if self.spec.heartbeat_timeout_ms.is_some() => "starting".into(),
-                None => "running".into(),
-                Some((_, b)) => service_state::name(b.state).into(),
+            Some(r) => match (r.last_beat_at, &self.last_beat) {
+                (Some(_), Some(b)) => service_state::name(b.state).into(),
+                _ if self.spec.heartbeat_timeout_ms.is_some() => "starting".into(),
+                _ => "running".into(),
             },
             None if self.next_start.is_some() => "backoff".into(),
             None => format!("stopped ({})", self.last_exit),
@@ -70,7 +71,7 @@ impl Managed {
 
     fn status(&self, now: Instant) -> ServiceStatus {
         let r = self.running.as_ref();
-        let beat_time = r.and_then(|r| r.last_beat.as_ref()).map(|(t, _)| *t);
+        let beat_time = r.and_then(|r| r.last_beat_at);
         let beat = self.last_beat.as_ref();
         ServiceStatus {
             name: self.spec.name.clone(),
@@ -313,7 +314,7 @@ impl Supervisor {
         let Some(r) = m.running.as_mut().filter(|r| r.pid == beat.pid) else {
             return;
         };
-        r.last_beat = Some((now, *beat));
+        r.last_beat_at = Some(now);
         m.last_beat = Some(*beat);
         r.rate_samples.push_back((now, beat.processed));
         while r
@@ -334,8 +335,8 @@ impl Supervisor {
             let Some(r) = m.running.as_mut().filter(|r| r.kill_at.is_none()) else {
                 continue;
             };
-            let silent_for = match &r.last_beat {
-                Some((t, _)) => now.duration_since(*t),
+            let silent_for = match r.last_beat_at {
+                Some(t) => now.duration_since(t),
                 None if now.duration_since(r.started)
                     > Duration::from_millis(m.spec.startup_timeout_ms) =>
                 {
@@ -412,7 +413,7 @@ impl Supervisor {
                 self.services.iter().any(|d| {
                     d.spec.name == *dep
                         && d.running.as_ref().is_some_and(|r| {
-                            r.last_beat.is_some() || d.spec.heartbeat_timeout_ms.is_none()
+                            r.last_beat_at.is_some() || d.spec.heartbeat_timeout_ms.is_none()
                         })
                 })
             });
@@ -429,7 +430,7 @@ impl Supervisor {
                         process,
                         pid,
                         started: now,
-                        last_beat: None,
+                        last_beat_at: None,
                         rate_samples: VecDeque::new(),
                         kill_at: None,
                         hung: false,
