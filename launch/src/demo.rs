@@ -1,21 +1,31 @@
-//! `usv demo`: the whole process set of `launch/sets/demo.toml` on a built-in simulated scenario, in a
-//! domain of its own, until the simulator's scenario time is up; then a summary. The demo watches the
-//! set like any other tool: it subscribes to topics and asks the supervisor for `ps`.
+//! `usv demo`: the whole process set (simulator, one stereo service per head, perception, mapper,
+//! tracker, sequencer, recorder) on a built-in scenario, closed loop and lock-step, in a domain of its
+//! own, until the scenario time is up. Then a summary, the recording's contents read back, and an
+//! overview picture. The demo watches the set like any other tool: it subscribes to topics and asks
+//! the supervisor for `ps`.
 
 use crate::control::ServiceStatus;
+use crate::observe::{MissionGoal, Observation, Observer};
+use crate::pipeline::PipelineSpec;
 use crate::session::{checkout_file, ensure_stack_built, has_stopped, percentile, Session};
-use messages::topics;
-use runtime::Ports;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub struct DemoArgs {
-    /// Launch file of the demo set (default: launch/sets/demo.toml of this checkout).
+    /// Scenario (default: services/sim/scenarios/open_water_crossing.toml of this checkout).
     #[arg(long)]
-    set: Option<PathBuf>,
-    /// Directory for the log and outputs.
+    scenario: Option<PathBuf>,
+    /// Scenario time to run (s).
+    #[arg(long, default_value_t = 20.0)]
+    duration: f64,
+    /// Resolution of the stereo heads as a fraction of the scenario's (1.0 = 1280x960 maritime heads).
+    #[arg(long, default_value_t = 0.5)]
+    head_scale: f64,
+    /// Camera frames per second of scenario time.
+    #[arg(long, default_value_t = 5.0)]
+    camera_rate: f64,
+    /// Directory for the set, the log, the recording and the picture.
     #[arg(long, default_value = "out/demo")]
     out: PathBuf,
     /// Give up after this many seconds of wall time.
@@ -23,46 +33,67 @@ pub struct DemoArgs {
     timeout_s: u64,
 }
 
-#[derive(Default)]
-struct Watch {
-    frames: u64,
-    frame_arrival: BTreeMap<u64, Instant>,
-    latencies_ms: Vec<f64>,
-    densities: Vec<f64>,
-    plane_heights: Vec<f64>,
-    disparities: u64,
-}
-
 pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     ensure_stack_built()?;
-    let set = match &args.set {
+    let scenario = match &args.scenario {
         Some(p) => p.clone(),
-        None => checkout_file("launch/sets/demo.toml")?,
+        None => checkout_file("services/sim/scenarios/open_water_crossing.toml")?,
+    }
+    .canonicalize()?;
+    let recording = std::path::absolute(args.out.join("demo.mcap"))?;
+    let spec = PipelineSpec {
+        name: "demo".into(),
+        scenario: scenario.clone(),
+        heads: Vec::new(),
+        head_scale: args.head_scale,
+        camera_rate_hz: Some(args.camera_rate),
+        duration_s: args.duration,
+        algo: "bm".into(),
+        closed_loop: true,
+        truth_head: None,
+        record: Some(recording.clone()),
+        lockstep_timeout_ms: 5000,
     };
-    let parsed = crate::launchfile::ProcessSet::load(&set)?;
-    let mut session = Session::start(&set, &args.out, "demo")?;
+    let written = crate::pipeline::write(&spec, &args.out)?;
+    let goal = match &written.mission {
+        Some(m) => MissionGoal::from_mission_text(&std::fs::read_to_string(m)?)?,
+        None => MissionGoal::default(),
+    };
+    let parsed = crate::launchfile::ProcessSet::load(&written.set)?;
+    let mut session = Session::start(&written.set, &args.out, "demo")?;
     println!(
-        "demo: set '{}' ({} services) from {}; logs in {}",
-        parsed.name,
+        "demo: {} s of {} through {} services (heads {}), closed loop, lock-step\n  set {}\n  log {}",
+        args.duration,
+        scenario.file_stem().unwrap_or_default().to_string_lossy(),
         parsed.services.len(),
-        set.display(),
+        written.heads.join(", "),
+        written.set.display(),
         session.log.display()
     );
-    let (watch, services, wall) = watch(&mut session, &args)?;
+    let (obs, services, wall) = watch(&mut session, &args, goal)?;
     let log = session.log.clone();
     session.down()?;
-    print_summary(&parsed.name, &watch, &services, wall);
-    // The set's recorder writes here (see the demo launch file).
-    let recording = set
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join("../../out/demo/demo.mcap");
+    print_summary(&obs, &services, wall);
     if recording.exists() {
         print_recording(&recording)?;
     }
+    let picture = args.out.join("overview.png");
+    let arcs = crate::overview::arc_geometry(written.sequencer_config.as_deref())?;
+    match crate::overview::write(&obs, &arcs, &picture) {
+        Ok(()) => println!(
+            "overview picture: {}",
+            std::path::absolute(&picture)?.display()
+        ),
+        Err(e) => println!("no overview picture: {e:#}"),
+    }
     anyhow::ensure!(
-        watch.frames > 0 && watch.disparities > 0,
+        obs.frames > 0 && obs.disparities > 0,
         "the demo produced no frames or no disparity: see {}",
+        log.display()
+    );
+    anyhow::ensure!(
+        obs.commands > 0,
+        "the sequencer commanded nothing: see {}",
         log.display()
     );
     Ok(())
@@ -71,91 +102,115 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
 fn watch(
     session: &mut Session,
     args: &DemoArgs,
-) -> anyhow::Result<(Watch, Vec<ServiceStatus>, Duration)> {
+    goal: MissionGoal,
+) -> anyhow::Result<(Observation, Vec<ServiceStatus>, Duration)> {
     let started = Instant::now();
     let deadline = started + Duration::from_secs(args.timeout_s);
     let node = runtime::tool_node("usv-demo")?;
-    let frames = topics::STEREO_FRAME.subscriber(&node)?;
-    let disparity = topics::DISPARITY.subscriber(&node)?;
+    let observer = Observer::new(&node)?;
     let shutdown = runtime::Shutdown::install()?;
-    let mut w = Watch::default();
+    let mut obs = Observation::new(goal);
     let mut last_report = Instant::now();
     let mut services = Vec::new();
     loop {
         session.check_alive()?;
-        while let Some(seq) = frames.receive()?.map(|s| s.user_header().hdr.seq) {
-            w.frames += 1;
-            w.frame_arrival.insert(seq, Instant::now());
-        }
-        while let Some(sample) = disparity.receive()? {
-            let h = sample.user_header();
-            w.disparities += 1;
-            if let Some(t) = w.frame_arrival.remove(&h.frame_seq) {
-                w.latencies_ms.push(t.elapsed().as_secs_f64() * 1e3);
-            }
-            let valid = sample.payload().iter().filter(|d| d.is_finite()).count();
-            w.densities
-                .push(valid as f64 / sample.payload().len().max(1) as f64);
-            if h.plane.valid == 1 {
-                w.plane_heights.push(h.plane.camera_height_m);
-            }
-        }
-        // Frames whose disparity never came are not latency samples.
-        while w.frame_arrival.len() > 64 {
-            w.frame_arrival.pop_first();
-        }
-        if last_report.elapsed() >= Duration::from_secs(1) {
+        observer.poll(&mut obs, |_, _| {})?;
+        if last_report.elapsed() >= Duration::from_secs(2) {
             last_report = Instant::now();
             if let Ok(s) = session.ps() {
                 services = s;
             }
             println!(
-                "  {:>5.1} s  frames {:>4}  disparities {:>4}",
+                "  {:>5.1} s wall  {:>5.1} s scenario  frames {:>4}  maps {:>4}  commands {:>4}  contacts {:>2}",
                 started.elapsed().as_secs_f64(),
-                w.frames,
-                w.disparities
+                obs.scenario_time_s(),
+                obs.frames,
+                obs.world_maps,
+                obs.commands,
+                obs.contacts.len()
             );
             if has_stopped(&services, "sim") {
+                // What is still in flight arrives within a moment.
+                std::thread::sleep(Duration::from_millis(300));
+                observer.poll(&mut obs, |_, _| {})?;
                 break;
             }
         }
         anyhow::ensure!(!shutdown.requested(), "interrupted");
         anyhow::ensure!(Instant::now() < deadline, "the demo did not finish in time");
-        std::thread::sleep(Duration::from_millis(5));
+        std::thread::sleep(Duration::from_millis(2));
     }
-    Ok((w, services, started.elapsed()))
+    Ok((obs, services, started.elapsed()))
 }
 
-fn print_summary(set: &str, w: &Watch, services: &[ServiceStatus], wall: Duration) {
+fn print_summary(o: &Observation, services: &[ServiceStatus], wall: Duration) {
     let fmt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |v| format!("{v:.1} {unit}"));
-    println!("\n== demo summary: set '{set}' ==");
+    let report = o.report();
+    println!("\n== demo summary ==");
     println!(
-        "frames {}  disparities {}  wall time {:.1} s  throughput {:.2} frames/s",
-        w.frames,
-        w.disparities,
+        "scenario time {:.1} s in {:.1} s wall; frames {} ({:.2}/s), disparities {}, local maps {}, world maps {}, commands {}",
+        o.scenario_time_s(),
         wall.as_secs_f64(),
-        w.disparities as f64 / wall.as_secs_f64()
+        o.frames,
+        o.frames as f64 / wall.as_secs_f64(),
+        o.disparities,
+        o.local_maps,
+        o.world_maps,
+        o.commands
     );
     println!(
-        "camera-to-disparity latency p50 {}  p99 {}",
-        fmt(percentile(&w.latencies_ms, 0.5), "ms"),
-        fmt(percentile(&w.latencies_ms, 0.99), "ms")
+        "latency camera->disparity p50 {} p99 {};  camera->command p50 {} p99 {}",
+        fmt(percentile(&o.disparity_latency_ms, 0.5), "ms"),
+        fmt(percentile(&o.disparity_latency_ms, 0.99), "ms"),
+        fmt(percentile(&o.command_latency_ms, 0.5), "ms"),
+        fmt(percentile(&o.command_latency_ms, 0.99), "ms"),
     );
     println!(
-        "disparity density median {}  water plane found in {}/{} frames, camera height median {}",
-        fmt(percentile(&w.densities, 0.5).map(|d| d * 100.0), "%"),
-        w.plane_heights.len(),
-        w.disparities,
-        fmt(percentile(&w.plane_heights, 0.5), "m")
+        "hazards: up to {} world-map cells at p >= 0.5; contacts confirmed: {}",
+        o.max_hazard_cells,
+        o.contacts
+            .iter()
+            .map(|(id, (class, p))| format!(
+                "#{id} {} at ({:.0}, {:.0})",
+                messages::contact_class::name(*class),
+                p[0],
+                p[1]
+            ))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     println!(
-        "{:<12} {:>9} {:>8} {:>7} {:>12} {:>12}  state",
+        "behaviour: step '{}', waypoints reached {}/{}, rudder reversals {:.1}/min, safe-stop commands {}, blocked commands {}",
+        report["mission_step"].as_str().unwrap_or("-"),
+        o.waypoints_reached(),
+        o.goal.waypoints.len(),
+        o.reversals_per_minute(),
+        o.safe_stop_commands,
+        o.blocked_commands
+    );
+    match o.min_clearance() {
+        Some(a) => println!(
+            "minimum obstacle distance {:.1} m ({} {} at {:.1} s){}",
+            a.clearance_m,
+            messages::truth_class::name(a.class),
+            a.id,
+            a.time_s,
+            if a.clearance_m <= 0.0 {
+                "  COLLISION"
+            } else {
+                ""
+            }
+        ),
+        None => println!("minimum obstacle distance: no obstacles in the scenario"),
+    }
+    println!(
+        "{:<18} {:>9} {:>8} {:>7} {:>10} {:>10}  state",
         "service", "processed", "rejected", "errors", "last (ms)", "max (ms)"
     );
     for s in services {
         let ms = |us: Option<u32>| us.map_or("-".into(), |u| format!("{:.1}", u as f64 / 1e3));
         println!(
-            "{:<12} {:>9} {:>8} {:>7} {:>12} {:>12}  {}",
+            "{:<18} {:>9} {:>8} {:>7} {:>10} {:>10}  {}",
             s.name,
             s.processed,
             s.rejected,
@@ -177,7 +232,7 @@ fn print_recording(path: &Path) -> anyhow::Result<()> {
         .ok_or_else(|| anyhow::anyhow!("{} has no statistics", path.display()))?;
     println!(
         "recording {} ({:.1} MB): {} messages on {} channels, {} chunks",
-        path.canonicalize()?.display(),
+        path.display(),
         bytes.len() as f64 / 1e6,
         stats.message_count,
         stats.channel_count,

@@ -1,15 +1,18 @@
-//! `usv eval <scenario...>`: runs each scenario lock-step through a process set (simulator -> stereo)
-//! and reports metrics against the simulator's ground truth: frames, rates, per-service processing
-//! time, and stereo range error on solid surfaces (objects, terrain) by range beside the theoretical
-//! sigma_Z = Z^2 sigma_d / (f B).
+//! `usv eval <scenario...>`: runs each scenario lock-step through a process set and reports metrics
+//! against the simulator's ground truth: frames, rates, per-service processing time, and stereo range
+//! error on solid surfaces (objects, terrain) by range beside the theoretical
+//! sigma_Z = Z^2 sigma_d / (f B). With `--closed-loop` the whole pipeline drives the boat through the
+//! scenario's mission and the behaviour is scored too (minimum distance to every obstacle, waypoints
+//! reached, following error, rudder reversals), with an overview picture per scenario.
 
+use crate::observe::{MissionGoal, Observation, Observer};
+use crate::pipeline::PipelineSpec;
 use crate::session::{has_stopped, percentile, Session};
 use messages::topics;
 use runtime::Ports;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
@@ -29,14 +32,22 @@ pub struct EvalArgs {
     /// One JSON object per scenario instead of tables.
     #[arg(long)]
     json: bool,
+    /// Run the whole pipeline and let the sequencer drive the scenario's mission.
+    #[arg(long)]
+    closed_loop: bool,
+    /// Resolution of the stereo heads as a fraction of the scenario's.
+    #[arg(long, default_value_t = 1.0)]
+    head_scale: f64,
+    /// Camera frames per second of scenario time (default: the scenario's).
+    #[arg(long)]
+    camera_rate: Option<f64>,
+    /// Heads to run (default: the scenario's mono heads); range error is scored on the first.
+    #[arg(long, value_delimiter = ',')]
+    heads: Vec<String>,
 }
 
 /// Range bins of the stereo evaluation (m); a pixel counts for a bin within +-15 % of its centre.
 const RANGE_BINS: [f64; 5] = [10.0, 25.0, 50.0, 100.0, 200.0];
-/// Water-plane search for simulated waves (same as the demo's stereo configuration): the lower rows see
-/// water within ~25 m, and waves need a loose inlier band.
-const PLANE_SEARCH: &str =
-    "[plane]\nlower_fraction = 0.35\nmax_range_m = 25.0\n\n[plane.fit]\ninlier_distance = 0.25\n";
 /// Disparity noise used for the theoretical range sigma (px).
 const SIGMA_D: f64 = 0.25;
 
@@ -83,77 +94,46 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Writes calibration, stereo config and launch file for one scenario; returns the launch file.
-fn write_set(scenario: &Path, name: &str, args: &EvalArgs) -> anyhow::Result<(PathBuf, String)> {
-    let dir = std::path::absolute(args.out.join(name))?;
-    std::fs::create_dir_all(&dir)?;
-    let sim = crate::launchfile::resolve_program("sim", &dir)
-        .ok_or_else(|| anyhow::anyhow!("the `sim` program was not found next to usv"))?;
-    let calib = dir.join("calib.toml");
-    let out = Command::new(&sim)
-        .arg("calib")
-        .arg(scenario)
-        .arg("--out")
-        .arg(&calib)
-        .output()?;
-    anyhow::ensure!(
-        out.status.success(),
-        "sim calib failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let head: serde_json::Value = serde_json::from_slice(&out.stdout)?;
-    let head_name = head["head"].as_str().unwrap_or_default().to_string();
-    let m = &head["mount"];
-    std::fs::write(
-        dir.join("stereo.toml"),
-        format!(
-            "head = \"{head_name}\"\ncalibration = \"calib.toml\"\n\n[matcher]\nalgo = \"{}\"\n\n[mount]\nposition = {}\nroll_deg = {}\npitch_deg = {}\nyaw_deg = {}\n\n{PLANE_SEARCH}",
-            args.algo, m["position"], m["roll_deg"], m["pitch_deg"], m["yaw_deg"]
-        ),
-    )?;
-    let set = dir.join("set.toml");
-    std::fs::write(
-        &set,
-        format!(
-            r#"name = "eval-{name}"
-heartbeat_timeout_ms = 5000
-
-[[service]]
-name = "stereo"
-program = "stereo"
-args = ["run", "--config", "stereo.toml"]
-
-[[service]]
-name = "sim"
-program = "sim"
-args = ["run", "{}", "--heads", "{head_name}", "--truth-head", "{head_name}",
-        "--lockstep", "stereo", "--duration", "{}"]
-restart = "never"
-depends_on = ["stereo"]
-"#,
-            scenario.display(),
-            args.duration
-        ),
-    )?;
-    Ok((set, head_name))
-}
-
 fn eval_scenario(
     scenario: &Path,
     name: &str,
     args: &EvalArgs,
 ) -> anyhow::Result<serde_json::Value> {
-    let (set, head) = write_set(scenario, name, args)?;
-    let mut session = Session::start(&set, set.parent().unwrap(), "eval")?;
+    let dir = args.out.join(name);
+    let heads = if args.heads.is_empty() {
+        crate::pipeline::default_heads(scenario)?
+    } else {
+        args.heads.clone()
+    };
+    let head = heads[0].clone();
+    let spec = PipelineSpec {
+        name: format!("eval-{name}"),
+        scenario: scenario.to_path_buf(),
+        heads,
+        head_scale: args.head_scale,
+        camera_rate_hz: args.camera_rate,
+        duration_s: args.duration,
+        algo: args.algo.clone(),
+        closed_loop: args.closed_loop,
+        truth_head: Some(head.clone()),
+        record: None,
+        lockstep_timeout_ms: 5000,
+    };
+    let written = crate::pipeline::write(&spec, &dir)?;
+    let goal = match &written.mission {
+        Some(m) => MissionGoal::from_mission_text(&std::fs::read_to_string(m)?)?,
+        None => MissionGoal::default(),
+    };
+    let mut session = Session::start(&written.set, &dir, "eval")?;
     // The watcher's node must be gone before the set is taken down, so the domain is left clean.
-    let (metrics, services, wall) = {
+    let (metrics, obs, services, wall) = {
         let node = runtime::tool_node("usv-eval")?;
-        let frames = topics::STEREO_FRAME.subscriber(&node)?;
-        let disparity = topics::DISPARITY.subscriber(&node)?;
+        let observer = Observer::new(&node)?;
         let truth = topics::TRUTH_IMAGE.subscriber(&node)?;
         let shutdown = runtime::Shutdown::install()?;
         let started = Instant::now();
         let mut metrics = Metrics::default();
+        let mut obs = Observation::new(goal);
         // Truth images and disparities by stamp until their partner arrives (the simulator renders
         // truth after publishing the frame, so either may come first).
         let mut truths: BTreeMap<u64, Vec<f32>> = BTreeMap::new();
@@ -161,9 +141,18 @@ fn eval_scenario(
         let mut last_poll = Instant::now();
         let services = loop {
             session.check_alive()?;
-            while frames.receive()?.is_some() {
-                metrics.frames += 1;
-            }
+            observer.poll(&mut obs, |h, payload| {
+                if h.head.as_str() != head {
+                    return;
+                }
+                metrics.disparities += 1;
+                match truths.remove(&h.hdr.stamp_ns) {
+                    Some(truth) => compare(&mut metrics, h, payload, &truth),
+                    None => {
+                        estimates.insert(h.hdr.stamp_ns, (*h, payload.to_vec()));
+                    }
+                }
+            })?;
             while let Some(sample) = truth.receive()? {
                 let stamp = sample.user_header().hdr.stamp_ns;
                 metrics.truth_frames += 1;
@@ -171,16 +160,6 @@ fn eval_scenario(
                     Some((h, estimate)) => compare(&mut metrics, &h, &estimate, sample.payload()),
                     None => {
                         truths.insert(stamp, sample.payload().to_vec());
-                    }
-                }
-            }
-            while let Some(sample) = disparity.receive()? {
-                metrics.disparities += 1;
-                let h = *sample.user_header();
-                match truths.remove(&h.hdr.stamp_ns) {
-                    Some(truth) => compare(&mut metrics, &h, sample.payload(), &truth),
-                    None => {
-                        estimates.insert(h.hdr.stamp_ns, (h, sample.payload().to_vec()));
                     }
                 }
             }
@@ -196,13 +175,32 @@ fn eval_scenario(
                 if has_stopped(&services, "sim") {
                     break services;
                 }
+                if !args.json && obs.frames > 0 {
+                    eprint!(
+                        "\r  {:>6.1} s scenario, {} frames",
+                        obs.scenario_time_s(),
+                        obs.frames
+                    );
+                }
             }
             anyhow::ensure!(!shutdown.requested(), "interrupted");
             std::thread::sleep(Duration::from_millis(2));
         };
-        (metrics, services, started.elapsed().as_secs_f64())
+        if !args.json {
+            eprintln!();
+        }
+        metrics.frames = obs.frames;
+        (metrics, obs, services, started.elapsed().as_secs_f64())
     };
     session.down()?;
+    let picture = if args.closed_loop {
+        let path = dir.join("overview.png");
+        let arcs = crate::overview::arc_geometry(written.sequencer_config.as_deref())?;
+        crate::overview::write(&obs, &arcs, &path)?;
+        Some(std::path::absolute(path)?)
+    } else {
+        None
+    };
 
     let service_figures: Vec<_> = services
         .iter()
@@ -237,6 +235,8 @@ fn eval_scenario(
         "frames_compared": metrics.compared_frames,
         "wall_s": wall, "frames_per_s": metrics.disparities as f64 / wall,
         "services": service_figures, "stereo_range_error": range,
+        "behaviour": args.closed_loop.then(|| obs.report()),
+        "overview": picture,
     }))
 }
 
@@ -305,6 +305,26 @@ fn print_report(r: &serde_json::Value) {
             f(&b["median_abs_error_m"], 1.0),
             f(&b["rms_error_m"], 1.0),
             f(&b["theoretical_sigma_m"], 1.0)
+        );
+    }
+    let b = &r["behaviour"];
+    if b.is_object() {
+        println!(
+            "behaviour: min clearance {} m ({}), collision {}, waypoints {}/{}, follow RMS {} m, rudder reversals {}/min, camera->command p50 {} ms p99 {} ms, contacts {}",
+            f(&b["min_clearance_m"], 1.0),
+            b["min_clearance_object"].as_str().unwrap_or("-"),
+            b["collision"],
+            b["waypoints_reached"],
+            b["waypoints"],
+            f(&b["follow_rms_m"], 1.0),
+            f(&b["rudder_reversals_per_min"], 1.0),
+            f(&b["camera_to_command_ms"]["p50"], 1.0),
+            f(&b["camera_to_command_ms"]["p99"], 1.0),
+            b["confirmed_contacts"].as_array().map_or(0, |c| c.len()),
+        );
+        println!(
+            "overview picture: {}",
+            r["overview"].as_str().unwrap_or("-")
         );
     }
     for s in r["services"].as_array().into_iter().flatten() {

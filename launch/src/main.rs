@@ -8,6 +8,9 @@ mod eval;
 mod inspect;
 mod launchfile;
 mod mission;
+mod observe;
+mod overview;
+mod pipeline;
 mod session;
 mod supervisor;
 

@@ -131,11 +131,21 @@ pub fn checkout_file(relative: &str) -> anyhow::Result<PathBuf> {
 }
 
 /// The stack's programs that process sets run.
-const STACK_PROGRAMS: [&str; 5] = ["sim", "stereo", "recorder", "sensors", "sequencer"];
+const STACK_PROGRAMS: [&str; 8] = [
+    "sim",
+    "stereo",
+    "perception",
+    "mapper",
+    "tracker",
+    "sequencer",
+    "recorder",
+    "sensors",
+];
 
 /// Makes sure the stack's programs are built next to `usv`. `cargo run -p launch` builds only `usv`;
 /// when run that way (cargo sets `CARGO` and `CARGO_MANIFEST_DIR`), build the rest of the workspace's
-/// programs once; otherwise say what to do.
+/// programs too (a no-op when they are fresh, and it keeps them from going stale beside a new `usv`);
+/// otherwise say what to do when one is missing.
 pub fn ensure_stack_built() -> anyhow::Result<()> {
     let exe_dir = std::env::current_exe()?
         .parent()
@@ -145,13 +155,13 @@ pub fn ensure_stack_built() -> anyhow::Result<()> {
         .iter()
         .filter(|p| !exe_dir.join(p).exists())
         .collect();
-    if missing.is_empty() {
-        return Ok(());
-    }
     let (Some(cargo), Some(manifest_dir)) = (
         std::env::var_os("CARGO"),
         std::env::var_os("CARGO_MANIFEST_DIR"),
     ) else {
+        if missing.is_empty() {
+            return Ok(());
+        }
         anyhow::bail!(
             "programs {missing:?} are not built next to {}: run `cargo build --release --workspace`",
             exe_dir.display()
@@ -166,7 +176,9 @@ pub fn ensure_stack_built() -> anyhow::Result<()> {
     } else {
         Some("--release")
     };
-    println!("building the stack's programs (first run only): {missing:?}");
+    if !missing.is_empty() {
+        println!("building the stack's programs (first run only): {missing:?}");
+    }
     let status = Command::new(cargo)
         .args(["build", "--workspace", "--bins", "--manifest-path"])
         .arg(&workspace)

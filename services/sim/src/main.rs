@@ -22,6 +22,8 @@ enum Command {
     Run(cmd::run::Args),
     /// Write a head's calibration for the stereo service.
     Calib(cmd::calib::Args),
+    /// Print the scenario's mission as a sequencer mission file.
+    Mission(cmd::mission::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -29,5 +31,6 @@ fn main() -> anyhow::Result<()> {
         Command::Render(args) => cmd::render::run(args),
         Command::Run(args) => cmd::run::run(args),
         Command::Calib(args) => cmd::calib::run(args),
+        Command::Mission(args) => cmd::mission::run(args),
     }
 }

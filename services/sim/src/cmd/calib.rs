@@ -5,7 +5,6 @@
 
 use anyhow::{Context, Result};
 use nalgebra::Vector3;
-use sim::Simulator;
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -19,11 +18,13 @@ pub struct Args {
     /// Output calibration file.
     #[arg(long)]
     out: PathBuf,
+    /// Render every head at this fraction of its resolution (same field of view).
+    #[arg(long, default_value_t = 1.0)]
+    head_scale: f64,
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let sim = Simulator::from_file(&args.scenario)
-        .with_context(|| format!("loading {}", args.scenario.display()))?;
+    let sim = super::load(&args.scenario, args.head_scale)?;
     let heads = &sim.world.heads;
     let index = match &args.head {
         Some(name) => sim

@@ -1,7 +1,7 @@
 //! `sim render`: one frame of a scenario to PNG, for inspection and documentation.
 
 use anyhow::{bail, Context, Result};
-use sim::{render::labels_to_rgb, Command, Encoding, Simulator};
+use sim::{render::labels_to_rgb, Command, Encoding};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -29,6 +29,9 @@ pub struct Args {
     /// Downscale all outputs by this integer factor (box filter), e.g. for documentation thumbnails.
     #[arg(long, default_value_t = 1)]
     downscale: u32,
+    /// Render every head at this fraction of its resolution (same field of view).
+    #[arg(long, default_value_t = 1.0)]
+    head_scale: f64,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -38,8 +41,7 @@ pub fn run(args: Args) -> Result<()> {
     if !(args.time.is_finite() && args.time >= 0.0) {
         bail!("--time must be a non-negative number of seconds");
     }
-    let mut sim = Simulator::from_file(&args.scenario)
-        .with_context(|| format!("loading {}", args.scenario.display()))?;
+    let mut sim = super::load(&args.scenario, args.head_scale)?;
     let head = match &args.head {
         Some(name) => sim.world.head_index(name).with_context(|| {
             let names: Vec<_> = sim.world.heads.iter().map(|h| h.name.as_str()).collect();

@@ -39,6 +39,12 @@ pub struct Args {
     /// Also publish per-pixel ground truth (disparity, labels) for this head.
     #[arg(long)]
     truth_head: Option<String>,
+    /// Frames per second of scenario time (default: the scenario's camera rate).
+    #[arg(long)]
+    camera_rate: Option<f64>,
+    /// Render every head at this fraction of its resolution (same field of view).
+    #[arg(long, default_value_t = 1.0)]
+    head_scale: f64,
 }
 
 struct HeadOut {
@@ -51,8 +57,16 @@ struct HeadOut {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let mut sim = Simulator::from_file(&args.scenario)
-        .with_context(|| format!("loading {}", args.scenario.display()))?;
+    let mut sim = super::load(&args.scenario, args.head_scale)?;
+    if let Some(rate) = args.camera_rate {
+        if !(rate.is_finite() && rate > 0.0 && rate <= sim.world.ins_rate_hz) {
+            bail!(
+                "--camera-rate {rate} must be positive and at most the INS rate ({} Hz)",
+                sim.world.ins_rate_hz
+            );
+        }
+        sim.world.camera_rate_hz = rate;
+    }
     let names: Vec<String> = if args.heads.is_empty() {
         sim.world.heads.iter().map(|h| h.name.clone()).collect()
     } else {

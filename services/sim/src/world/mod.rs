@@ -72,6 +72,30 @@ impl World {
         self.heads.iter().position(|h| h.name == name)
     }
 
+    /// Scales every head's resolution by `factor` (same field of view, so the focal length in pixels
+    /// scales too). Closed-loop runs use it to trade image detail for frame rate.
+    pub fn scale_heads(&mut self, factor: f64) -> Result<(), String> {
+        if !(factor.is_finite() && factor > 0.0 && factor <= 4.0) {
+            return Err(format!("head scale {factor} is not in (0, 4]"));
+        }
+        for h in &mut self.heads {
+            let (w, ht) = (
+                (h.width as f64 * factor).round() as u32,
+                (h.height as f64 * factor).round() as u32,
+            );
+            if w < 64 || ht < 48 {
+                return Err(format!(
+                    "head `{}` would be {w}x{ht} at scale {factor}; the smallest is 64x48",
+                    h.name
+                ));
+            }
+            // Even sizes keep the stereo matcher's reduced scale aligned.
+            h.width = w & !1;
+            h.height = ht & !1;
+        }
+        Ok(())
+    }
+
     /// Ground (or water) height and up-normal at (x, y), for placing vehicles and objects.
     pub fn ground_at(&self, x: f64, y: f64) -> (f64, [f64; 3]) {
         let (xf, yf) = (x as f32, y as f32);
