@@ -6,7 +6,7 @@
 
 use crate::control::ServiceStatus;
 use crate::observe::{MissionGoal, Observation, Observer};
-use crate::pipeline::PipelineSpec;
+use crate::pipeline::{PipelineSpec, Recording, Source};
 use crate::session::{checkout_file, ensure_stack_built, has_stopped, percentile, Session};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -46,12 +46,18 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         scenario: scenario.clone(),
         heads: Vec::new(),
         head_scale: args.head_scale,
-        camera_rate_hz: Some(args.camera_rate),
-        duration_s: args.duration,
+        source: Source::Sim {
+            camera_rate_hz: Some(args.camera_rate),
+            duration_s: args.duration,
+            truth_head: None,
+        },
         algo: "bm".into(),
         closed_loop: true,
-        truth_head: None,
-        record: Some(recording.clone()),
+        record: Some(Recording {
+            file: recording.clone(),
+            topics: Vec::new(),
+            lz4: true,
+        }),
         lockstep_timeout_ms: 5000,
     };
     let written = crate::pipeline::write(&spec, &args.out)?;

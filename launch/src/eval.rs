@@ -6,7 +6,7 @@
 //! reached, following error, rudder reversals), with an overview picture per scenario.
 
 use crate::observe::{MissionGoal, Observation, Observer};
-use crate::pipeline::PipelineSpec;
+use crate::pipeline::{PipelineSpec, Source};
 use crate::session::{has_stopped, percentile, Session};
 use messages::topics;
 use runtime::Ports;
@@ -111,11 +111,13 @@ fn eval_scenario(
         scenario: scenario.to_path_buf(),
         heads,
         head_scale: args.head_scale,
-        camera_rate_hz: args.camera_rate,
-        duration_s: args.duration,
+        source: Source::Sim {
+            camera_rate_hz: args.camera_rate,
+            duration_s: args.duration,
+            truth_head: Some(head.clone()),
+        },
         algo: args.algo.clone(),
         closed_loop: args.closed_loop,
-        truth_head: Some(head.clone()),
         record: None,
         lockstep_timeout_ms: 5000,
     };

@@ -11,6 +11,7 @@ mod mission;
 mod observe;
 mod overview;
 mod pipeline;
+mod regress;
 mod session;
 mod supervisor;
 
@@ -36,10 +37,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Run the demo: the demo process set on a simulated scenario, then a summary.
+    /// Run the demo: the whole stack closed loop on a simulated scenario, then a summary and a picture.
     Demo(demo::DemoArgs),
     /// Run scenarios lock-step through the stack and report metrics against ground truth.
     Eval(eval::EvalArgs),
+    /// Write the process set of a simulated run (for `usv up`) without running it.
+    Set(pipeline::SetArgs),
+    /// Replay a short recording through every service and compare with committed expectations.
+    Regress(regress::RegressArgs),
     /// Start a process set from a launch file and supervise it until `usv down` or Ctrl-C.
     Up { set: PathBuf },
     /// Stop the running set: SIGTERM, grace period, SIGKILL, then sweep stale shared memory.
@@ -145,6 +150,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Cmd::Demo(args) => demo::run(args),
         Cmd::Eval(args) => eval::run(args),
+        Cmd::Regress(args) => regress::run(args),
+        Cmd::Set(args) => pipeline::run_set(args),
         Cmd::Down => print_reply(call(Request::Down)?),
         Cmd::Ps { json } => match call(Request::Ps)? {
             Reply::Ps { set, services } if json => {

@@ -1,7 +1,8 @@
-//! Writes the process set of a simulated run: the simulator as the clock, one stereo service per
-//! head, and (closed loop) perception, mapper, tracker and sequencer with the scenario's mission; the
-//! recorder when asked. `usv demo`, `usv eval` and `usv bench pipeline` all run sets written here, so
-//! what they measure is the same graph a user starts with `usv up <dir>/set.toml`.
+//! Writes the process set of a run: a source (the simulator as the clock, or a lock-step replay of a
+//! recording), one stereo service per head, and (closed loop) perception, mapper, tracker and
+//! sequencer with the scenario's mission; the recorder when asked. `usv demo`, `usv eval`,
+//! `usv regress` and `usv bench pipeline` all run sets written here, so what they measure is the same
+//! graph a user starts with `usv up <dir>/set.toml`.
 //!
 //! Per-run files (calibrations and stereo configurations for the chosen head scale, the mission) are
 //! generated into the run directory; the services' own configurations are the committed files in
@@ -17,6 +18,40 @@ use std::process::Command;
 const PLANE_SEARCH: &str =
     "[plane]\nlower_fraction = 0.35\nmax_range_m = 25.0\n\n[plane.fit]\ninlier_distance = 0.25\n";
 
+/// Where the frames come from.
+#[derive(Debug, Clone)]
+pub enum Source {
+    /// The simulator renders the scenario for this much scenario time.
+    Sim {
+        camera_rate_hz: Option<f64>,
+        duration_s: f64,
+        /// Also publish per-pixel truth for this head.
+        truth_head: Option<String>,
+    },
+    /// `sensors replay` of a recording of the scenario (made with the same heads and head scale).
+    Replay { file: PathBuf },
+}
+
+impl Source {
+    /// The source's service name in the set.
+    pub fn service_name(&self) -> &'static str {
+        match self {
+            Source::Sim { .. } => "sim",
+            Source::Replay { .. } => "sensors",
+        }
+    }
+}
+
+/// What the recorder of a set writes.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    pub file: PathBuf,
+    /// Topics to record; empty: every topic.
+    pub topics: Vec<String>,
+    /// lz4 for image and grid chunks (smaller files, a little CPU).
+    pub lz4: bool,
+}
+
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct PipelineSpec {
@@ -25,17 +60,13 @@ pub struct PipelineSpec {
     /// Heads to render and match; empty: the scenario's mono heads (all heads if it has none).
     pub heads: Vec<String>,
     pub head_scale: f64,
-    pub camera_rate_hz: Option<f64>,
-    pub duration_s: f64,
+    pub source: Source,
     /// Stereo matcher: "bm" or "sgm".
     pub algo: String,
-    /// Add perception, mapper, tracker and sequencer, and drive the boat with the sequencer.
+    /// Add perception, mapper, tracker and sequencer (driving the boat when the source is the sim).
     pub closed_loop: bool,
-    /// Also publish per-pixel truth for this head.
-    pub truth_head: Option<String>,
-    /// Record every topic to this MCAP file.
-    pub record: Option<PathBuf>,
-    /// Longest wait for the pipeline per frame before the simulator goes on without it (ms).
+    pub record: Option<Recording>,
+    /// Longest wait for the pipeline per frame before the source goes on without it (ms).
     pub lockstep_timeout_ms: u64,
 }
 
@@ -149,6 +180,7 @@ pub fn write(spec: &PipelineSpec, dir: &Path) -> anyhow::Result<WrittenSet> {
             Ok(checkout_file(&format!("launch/sets/{file}"))?.canonicalize()?)
         };
         let mission_file = dir.join("mission.toml");
+        // A replayed boat does not obey, but the sequencer still plans what it would command.
         let text = sim_output(&sim, &["mission".as_ref(), spec.scenario.as_os_str()])?;
         std::fs::write(&mission_file, text)?;
         let seq_config = config("sequencer.toml")?;
@@ -172,38 +204,73 @@ pub fn write(spec: &PipelineSpec, dir: &Path) -> anyhow::Result<WrittenSet> {
         sequencer_config = Some(seq_config);
     }
     let mut depends = pipeline.clone();
-    if let Some(out) = &spec.record {
+    if let Some(rec) = &spec.record {
+        let mut args = vec![
+            "--out".to_string(),
+            std::path::absolute(&rec.file)?.display().to_string(),
+            "--image-view-every".into(),
+            "5".into(),
+        ];
+        if !rec.topics.is_empty() {
+            args.extend(["--topics".into(), rec.topics.join(",")]);
+        }
+        if rec.lz4 {
+            args.extend(["--image-compression".into(), "lz4".into()]);
+        }
         writeln!(
             services,
-            "[[service]]\nname = \"recorder\"\nprogram = \"recorder\"\nargs = [\"--out\", \"{}\", \"--image-view-every\", \"5\"]\n# Not in the lock-step pipeline: it records what flows, including the simulator's INS and truth.\n",
-            std::path::absolute(out)?.display()
+            "[[service]]\nname = \"recorder\"\nprogram = \"recorder\"\nargs = {}\n# Not in the lock-step pipeline: it records what flows, including the source's INS and truth.\n",
+            toml_list(&args)
         )?;
         depends.push("recorder".into());
     }
-    let mut sim_args = vec![
-        "run".to_string(),
-        spec.scenario.display().to_string(),
-        "--heads".into(),
-        heads.join(","),
-        "--head-scale".into(),
-        scale.clone(),
-        "--lockstep".into(),
-        pipeline.join(","),
-        "--lockstep-timeout-ms".into(),
-        spec.lockstep_timeout_ms.to_string(),
-        "--duration".into(),
-        spec.duration_s.to_string(),
-    ];
-    if let Some(rate) = spec.camera_rate_hz {
-        sim_args.extend(["--camera-rate".into(), rate.to_string()]);
-    }
-    if let Some(head) = &spec.truth_head {
-        sim_args.extend(["--truth-head".into(), head.clone()]);
-    }
+    let source_args = match &spec.source {
+        Source::Sim {
+            camera_rate_hz,
+            duration_s,
+            truth_head,
+        } => {
+            let mut args = vec![
+                "run".to_string(),
+                spec.scenario.display().to_string(),
+                "--heads".into(),
+                heads.join(","),
+                "--head-scale".into(),
+                scale.clone(),
+                "--duration".into(),
+                duration_s.to_string(),
+            ];
+            if !pipeline.is_empty() {
+                args.extend([
+                    "--lockstep".into(),
+                    pipeline.join(","),
+                    "--lockstep-timeout-ms".into(),
+                    spec.lockstep_timeout_ms.to_string(),
+                ]);
+            }
+            if let Some(rate) = camera_rate_hz {
+                args.extend(["--camera-rate".into(), rate.to_string()]);
+            }
+            if let Some(head) = truth_head {
+                args.extend(["--truth-head".into(), head.clone()]);
+            }
+            args
+        }
+        Source::Replay { file } => vec![
+            "replay".to_string(),
+            std::path::absolute(file)?.display().to_string(),
+            "--lockstep".into(),
+            "--pipeline".into(),
+            pipeline.join(","),
+            "--lockstep-timeout".into(),
+            (spec.lockstep_timeout_ms as f64 / 1e3).to_string(),
+        ],
+    };
+    let source = spec.source.service_name();
     writeln!(
         services,
-        "[[service]]\nname = \"sim\"\nprogram = \"sim\"\nargs = {}\n# The source of a run that ends when its scenario time is up.\nrestart = \"never\"\ndepends_on = {}",
-        toml_list(&sim_args),
+        "[[service]]\nname = \"{source}\"\nprogram = \"{source}\"\nargs = {}\n# The source of a run that ends when its scenario time or its recording is over.\nrestart = \"never\"\ndepends_on = {}",
+        toml_list(&source_args),
         toml_list(&depends)
     )?;
     let set = dir.join("set.toml");
@@ -222,4 +289,66 @@ pub fn write(spec: &PipelineSpec, dir: &Path) -> anyhow::Result<WrittenSet> {
         mission,
         sequencer_config,
     })
+}
+
+/// `usv set`: writes the process set of a simulated run for `usv up`, without running it.
+#[derive(clap::Args)]
+pub struct SetArgs {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// Directory for set.toml and its generated files.
+    #[arg(long)]
+    out: PathBuf,
+    /// Add perception, mapper, tracker and sequencer and let the sequencer drive.
+    #[arg(long)]
+    closed_loop: bool,
+    /// Heads to run (default: the scenario's mono heads).
+    #[arg(long, value_delimiter = ',')]
+    heads: Vec<String>,
+    /// Resolution of the stereo heads as a fraction of the scenario's.
+    #[arg(long, default_value_t = 1.0)]
+    head_scale: f64,
+    /// Camera frames per second of scenario time (default: the scenario's).
+    #[arg(long)]
+    camera_rate: Option<f64>,
+    /// Scenario time to run (s).
+    #[arg(long, default_value_t = 30.0)]
+    duration: f64,
+    /// Stereo matcher: bm or sgm.
+    #[arg(long, default_value = "bm")]
+    algo: String,
+    /// Record every topic to this MCAP file.
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// Longest wait for the pipeline per frame before the simulator goes on (ms).
+    #[arg(long, default_value_t = 5000)]
+    lockstep_timeout_ms: u64,
+}
+
+pub fn run_set(args: SetArgs) -> anyhow::Result<()> {
+    let spec = PipelineSpec {
+        name: args
+            .scenario
+            .file_stem()
+            .map_or("set".into(), |s| s.to_string_lossy().into_owned()),
+        scenario: args.scenario.canonicalize()?,
+        heads: args.heads,
+        head_scale: args.head_scale,
+        source: Source::Sim {
+            camera_rate_hz: args.camera_rate,
+            duration_s: args.duration,
+            truth_head: None,
+        },
+        algo: args.algo,
+        closed_loop: args.closed_loop,
+        record: args.record.map(|file| Recording {
+            file,
+            topics: Vec::new(),
+            lz4: true,
+        }),
+        lockstep_timeout_ms: args.lockstep_timeout_ms,
+    };
+    let written = write(&spec, &args.out)?;
+    println!("{}", written.set.display());
+    Ok(())
 }
