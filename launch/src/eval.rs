@@ -5,6 +5,8 @@
 //! scenario's mission and the behaviour is scored too (minimum distance to every obstacle, waypoints
 //! reached, following error, rudder reversals), with an overview picture per scenario.
 
+use crate::chaos::Chaos;
+use crate::control::ServiceStatus;
 use crate::observe::{MissionGoal, Observation, Observer};
 use crate::pipeline::{PipelineSpec, Source};
 use crate::session::{has_stopped, percentile, Session};
@@ -44,6 +46,16 @@ pub struct EvalArgs {
     /// Heads to run (default: the scenario's mono heads); range error is scored on the first.
     #[arg(long, value_delimiter = ',')]
     heads: Vec<String>,
+    /// Chaos with this seed: kill -9 random pipeline services at random times, hang perception once.
+    #[arg(long, requires = "closed_loop")]
+    chaos: Option<u64>,
+    /// Record every topic to <out>/<scenario>/run.mcap and check that nothing the source published
+    /// is missing from it.
+    #[arg(long)]
+    record: bool,
+    /// Longest wait for the pipeline per frame before the simulator goes on without it (ms).
+    #[arg(long, default_value_t = 5000)]
+    lockstep_timeout_ms: u64,
 }
 
 /// Range bins of the stereo evaluation (m); a pixel counts for a bin within +-15 % of its centre.
@@ -118,8 +130,12 @@ fn eval_scenario(
         },
         algo: args.algo.clone(),
         closed_loop: args.closed_loop,
-        record: None,
-        lockstep_timeout_ms: 5000,
+        record: args.record.then(|| crate::pipeline::Recording {
+            file: dir.join("run.mcap"),
+            topics: Vec::new(),
+            lz4: true,
+        }),
+        lockstep_timeout_ms: args.lockstep_timeout_ms,
     };
     let written = crate::pipeline::write(&spec, &dir)?;
     let goal = match &written.mission {
@@ -128,6 +144,15 @@ fn eval_scenario(
     };
     let mut session = Session::start(&written.set, &dir, "eval")?;
     // The watcher's node must be gone before the set is taken down, so the domain is left clean.
+    let mut chaos = args.chaos.map(|seed| {
+        let mut victims: Vec<String> = written
+            .heads
+            .iter()
+            .map(|h| format!("stereo-{h}"))
+            .collect();
+        victims.extend(["perception", "mapper", "tracker", "sequencer"].map(String::from));
+        Chaos::new(seed, victims, Some("perception".into()))
+    });
     let (metrics, obs, services, wall) = {
         let node = runtime::tool_node("usv-eval")?;
         let observer = Observer::new(&node)?;
@@ -165,6 +190,9 @@ fn eval_scenario(
                     }
                 }
             }
+            if let Some(chaos) = &mut chaos {
+                chaos.step(&session, &obs)?;
+            }
             while truths.len() > 16 {
                 truths.pop_first();
             }
@@ -195,6 +223,10 @@ fn eval_scenario(
         (metrics, obs, services, started.elapsed().as_secs_f64())
     };
     session.down()?;
+    let recording = match &spec.record {
+        Some(rec) => Some(check_recording(&rec.file, &services, written.heads.len())?),
+        None => None,
+    };
     let picture = if args.closed_loop {
         let path = dir.join("overview.png");
         let arcs = crate::overview::arc_geometry(written.sequencer_config.as_deref())?;
@@ -238,7 +270,51 @@ fn eval_scenario(
         "wall_s": wall, "frames_per_s": metrics.disparities as f64 / wall,
         "services": service_figures, "stereo_range_error": range,
         "behaviour": args.closed_loop.then(|| obs.report()),
+        "chaos": chaos.map(|c| c.report()),
+        "recording": recording,
         "overview": picture,
+    }))
+}
+
+/// Reads the recording's statistics back and compares them with what the simulator says it
+/// published: one ground truth per frame and one stereo frame per head and frame.
+fn check_recording(
+    file: &Path,
+    services: &[ServiceStatus],
+    heads: usize,
+) -> anyhow::Result<serde_json::Value> {
+    let bytes = std::fs::read(file)?;
+    let summary = mcap::Summary::read(&bytes)?
+        .ok_or_else(|| anyhow::anyhow!("{} has no summary section", file.display()))?;
+    let stats = summary
+        .stats
+        .ok_or_else(|| anyhow::anyhow!("{} has no statistics", file.display()))?;
+    let count = |topic: &str| -> u64 {
+        summary
+            .channels
+            .values()
+            .filter(|c| c.topic == topic)
+            .map(|c| {
+                stats
+                    .channel_message_counts
+                    .get(&c.id)
+                    .copied()
+                    .unwrap_or(0)
+            })
+            .sum()
+    };
+    let frames = services
+        .iter()
+        .find(|s| s.name == "sim")
+        .map_or(0, |s| s.processed);
+    let truth = count(topics::GROUND_TRUTH.name);
+    let stereo = count(topics::STEREO_FRAME.name);
+    Ok(json!({
+        "file": std::path::absolute(file)?,
+        "sim_frames": frames,
+        "ground_truth": truth,
+        "stereo_frames": stereo,
+        "complete": truth == frames && stereo == frames * heads as u64,
     }))
 }
 

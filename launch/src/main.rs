@@ -1,6 +1,7 @@
 //! `usv`: run, inspect and measure the autonomy stack's process sets.
 
 mod bench;
+mod chaos;
 mod child;
 mod control;
 mod demo;

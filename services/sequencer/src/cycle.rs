@@ -20,7 +20,9 @@ pub enum CycleOn {
     /// waits for. Deterministic in replay.
     #[default]
     Map,
-    /// Every INS sample (faster control; the newest map's hazards are re-rotated each time).
+    /// Every INS sample and every world map: faster control (the newest map's hazards are
+    /// re-rotated each time), and the watchdog keeps running in stream time when maps stop, so a
+    /// silent perception chain gives a safe stop as soon as the map is stale.
     Ins,
 }
 

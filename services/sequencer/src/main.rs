@@ -1,9 +1,9 @@
 //! `sequencer run --config FILE [--mission FILE]`: the sequencer service.
 //!
 //! Subscribes the world map, the contact list and the INS; publishes one `ActuatorCommand` and one
-//! `SequencerStatus` per cycle. A cycle runs on every world map (`cycle_on = "map"`, the default) or
-//! on every INS sample (`cycle_on = "ins"`), and also when an input misses its deadline, so a stop
-//! goes out even when everything fell silent. The command's stamp is the newest input stamp used.
+//! `SequencerStatus` per cycle. A cycle runs on every world map, also on every INS sample with
+//! `cycle_on = "ins"`, and when an input misses its deadline, so a stop goes out even when everything
+//! fell silent. The command's stamp is the newest input stamp used.
 //! The world-map stamp is the primary input reported in the heartbeat (lock-step sources pace on it).
 //! Missions arrive on the request-response service `usv/control/mission`, polled on a tick inside the
 //! same wait loop (iceoryx2 request-response has no event to wait on).
@@ -169,7 +169,9 @@ fn run(config: PathBuf, mission: Option<PathBuf>) -> anyhow::Result<()> {
                 match seq.on_map(sample.user_header(), sample.payload()) {
                     Ok(()) => {
                         map_stamp = Some(stamp);
-                        cycle |= cfg.cycle_on == CycleOn::Map;
+                        // A new map always gets a decision, so the command for a frame goes out
+                        // before the frame is reported done (lock-step sources apply it next).
+                        cycle = true;
                     }
                     Err(e) => health.reject(stamp, &e.to_string()),
                 }

@@ -1,0 +1,162 @@
+//! Chaos during an evaluation run (`usv eval --closed-loop --chaos SEED`): kill -9 a random pipeline
+//! service at random times and measure how long the supervisor takes to bring it back (new process,
+//! first heartbeat); once per run, hang perception with SIGSTOP until the supervisor's heartbeat
+//! timeout replaces it, and count the safe-stop commands the sequencer gives while the map is stale.
+//! The run's other figures (clearance, collisions) say whether the boat stayed safe throughout.
+
+use crate::control::ServiceStatus;
+use crate::observe::Observation;
+use crate::session::Session;
+use serde_json::json;
+use std::time::{Duration, Instant};
+
+/// A killed service not back after this long counts as not recovered.
+const GIVE_UP: Duration = Duration::from_secs(10);
+
+struct Outage {
+    service: String,
+    signal: &'static str,
+    old_pid: u32,
+    at: Instant,
+    scenario_s: f64,
+    safe_stops_before: u64,
+}
+
+pub struct Chaos {
+    seed: u64,
+    rng: u64,
+    victims: Vec<String>,
+    next_kill: Instant,
+    hang_service: Option<String>,
+    hang_after: Duration,
+    started: Instant,
+    outage: Option<Outage>,
+    records: Vec<serde_json::Value>,
+    recoveries_ms: Vec<f64>,
+    hang_record: Option<serde_json::Value>,
+}
+
+impl Chaos {
+    /// `victims`: services that may be killed; `hang`: the service to hang once (perception).
+    pub fn new(seed: u64, victims: Vec<String>, hang: Option<String>) -> Self {
+        let mut chaos = Self {
+            seed,
+            rng: seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1,
+            victims,
+            next_kill: Instant::now(),
+            hang_service: hang,
+            hang_after: Duration::from_secs(12),
+            started: Instant::now(),
+            outage: None,
+            records: Vec::new(),
+            recoveries_ms: Vec::new(),
+            hang_record: None,
+        };
+        chaos.next_kill = Instant::now() + chaos.pause();
+        chaos
+    }
+
+    /// xorshift64*: reproducible from the seed, no dependency for a handful of draws.
+    fn next(&mut self) -> u64 {
+        self.rng ^= self.rng >> 12;
+        self.rng ^= self.rng << 25;
+        self.rng ^= self.rng >> 27;
+        self.rng.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    /// 2 to 5 s between kills.
+    fn pause(&mut self) -> Duration {
+        Duration::from_millis(2000 + self.next() % 3000)
+    }
+
+    /// Called often from the evaluation loop.
+    pub fn step(&mut self, session: &Session, obs: &Observation) -> anyhow::Result<()> {
+        if let Some(outage) = &self.outage {
+            let services = session.ps()?;
+            if back(&services, &outage.service, outage.old_pid) || outage.at.elapsed() > GIVE_UP {
+                self.finish(&services, obs);
+            }
+            return Ok(());
+        }
+        let hang_due = self.hang_record.is_none()
+            && self.hang_service.is_some()
+            && self.started.elapsed() >= self.hang_after;
+        if !hang_due && Instant::now() < self.next_kill {
+            return Ok(());
+        }
+        let (service, signal, name) = if hang_due {
+            (
+                self.hang_service.clone().unwrap_or_default(),
+                libc::SIGSTOP,
+                "SIGSTOP",
+            )
+        } else {
+            let k = (self.next() % self.victims.len().max(1) as u64) as usize;
+            (self.victims[k].clone(), libc::SIGKILL, "SIGKILL")
+        };
+        let services = session.ps()?;
+        let Some(pid) = services
+            .iter()
+            .find(|s| s.name == service && s.heartbeat_age_ms.is_some())
+            .and_then(|s| s.pid)
+        else {
+            // Not up (yet): try another time.
+            self.next_kill = Instant::now() + Duration::from_millis(200);
+            return Ok(());
+        };
+        // SAFETY: kill(2) on a child of the set's supervisor.
+        unsafe { libc::kill(pid as libc::pid_t, signal) };
+        self.outage = Some(Outage {
+            service,
+            signal: name,
+            old_pid: pid,
+            at: Instant::now(),
+            scenario_s: obs.scenario_time_s(),
+            safe_stops_before: obs.safe_stop_commands,
+        });
+        Ok(())
+    }
+
+    fn finish(&mut self, services: &[ServiceStatus], obs: &Observation) {
+        let Some(o) = self.outage.take() else { return };
+        let recovered = back(services, &o.service, o.old_pid);
+        let ms = o.at.elapsed().as_secs_f64() * 1e3;
+        let record = json!({
+            "service": o.service, "signal": o.signal, "scenario_s": (o.scenario_s * 10.0).round() / 10.0,
+            "recovered_ms": recovered.then_some((ms * 10.0).round() / 10.0),
+            "safe_stop_commands": obs.safe_stop_commands - o.safe_stops_before,
+        });
+        if o.signal == "SIGSTOP" {
+            self.hang_record = Some(record);
+        } else {
+            if recovered {
+                self.recoveries_ms.push(ms);
+            }
+            self.records.push(record);
+        }
+        self.next_kill = Instant::now() + self.pause();
+    }
+
+    pub fn report(&self) -> serde_json::Value {
+        let unrecovered = self
+            .records
+            .iter()
+            .filter(|r| r["recovered_ms"].is_null())
+            .count();
+        json!({
+            "seed": self.seed,
+            "kills": self.records.len(),
+            "not_recovered": unrecovered,
+            "max_recovery_ms": self.recoveries_ms.iter().copied().fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v)))),
+            "events": self.records,
+            "hang": self.hang_record,
+        })
+    }
+}
+
+/// True once `service` runs as a new process that has sent a heartbeat.
+fn back(services: &[ServiceStatus], service: &str, old_pid: u32) -> bool {
+    services.iter().any(|s| {
+        s.name == service && s.pid.is_some_and(|p| p != old_pid) && s.heartbeat_age_ms.is_some()
+    })
+}
