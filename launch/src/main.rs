@@ -222,6 +222,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "ipc" => bench::ipc::run(quick)?,
                 "recorder" => bench::recorder(quick)?,
                 "sim" => bench::sim::run(quick)?,
+                "pipeline" => bench::pipeline::run(quick)?,
                 other => anyhow::bail!(
                     "unknown benchmark '{other}'; available: {}",
                     bench::NAMES.join(", ")

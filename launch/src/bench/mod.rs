@@ -2,6 +2,7 @@
 //! user's hardware. Every benchmark prints a table, or with `--json` one JSON object per figure.
 
 pub mod ipc;
+pub mod pipeline;
 pub mod sim;
 
 use serde_json::json;
@@ -40,7 +41,7 @@ impl Figure {
     }
 }
 
-pub const NAMES: &[&str] = &["ipc", "recorder", "sim"];
+pub const NAMES: &[&str] = &["ipc", "recorder", "sim", "pipeline"];
 
 /// `usv bench recorder`: the recorder's MCAP writer against a plain file write of the same bytes,
 /// then the recorder process live: 2 heads x 1280x960 mono pairs at 10 Hz over shared memory.
