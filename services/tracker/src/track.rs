@@ -1,0 +1,421 @@
+//! Multi-target tracking: one constant-velocity Kalman filter per track in ENU, Mahalanobis gating,
+//! optimal assignment of detections to tracks (Kuhn-Munkres from `pathfinding`), birth of a
+//! tentative track per unassigned detection, M-of-N confirmation, coasting on missed detections and
+//! deletion after a coast limit.
+
+use crate::classify::Model;
+use crate::detect::{Detection, Detector};
+use messages::{
+    contact_class, Contact, ContactList, Header, MapCell, WorldMapHeader, MAX_CONTACTS,
+};
+use nalgebra::{Matrix2, Matrix2x4, Matrix4, Vector2, Vector4};
+use pathfinding::prelude::{kuhn_munkres_min, Matrix};
+use serde::Deserialize;
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackerConfig {
+    /// Cells with hazard >= this (0..=255) form detections.
+    pub hazard_threshold: u8,
+    /// Smallest component kept (cells).
+    pub min_cells: u32,
+    /// Detections kept per map at most (scan order).
+    pub max_detections: usize,
+    /// White-acceleration noise of the constant-velocity model (m/s^2).
+    pub accel_sigma: f64,
+    /// Measurement noise along the line of sight: sigma = a + b * range (m). Stereo range error
+    /// grows with range, so the along-range term is the larger one.
+    pub range_sigma: [f64; 2],
+    /// Measurement noise across the line of sight: sigma = a + b * range (m).
+    pub cross_sigma: [f64; 2],
+    /// Initial velocity standard deviation of a new track (m/s).
+    pub initial_speed_sigma: f64,
+    /// Gate on the squared Mahalanobis distance (chi-square, 2 dof; 9.21 = 99 %).
+    pub gate_chi2: f64,
+    /// A track is confirmed after `confirm_hits` detections in its last `confirm_window` maps.
+    pub confirm_hits: u32,
+    pub confirm_window: u32,
+    /// A confirmed track is deleted after coasting this long (s).
+    pub max_coast_s: f64,
+    /// A tentative track is deleted after this many consecutive misses.
+    pub tentative_misses: u32,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            hazard_threshold: 128,
+            min_cells: 1,
+            max_detections: 256,
+            accel_sigma: 0.5,
+            range_sigma: [0.2, 0.01],
+            cross_sigma: [0.15, 0.004],
+            initial_speed_sigma: 5.0,
+            gate_chi2: 9.21,
+            confirm_hits: 3,
+            confirm_window: 5,
+            max_coast_s: 2.0,
+            tentative_misses: 2,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum TrackError {
+    #[error("invalid tracker configuration: {0}")]
+    Config(String),
+    #[error("world map {seq}: {count} cells for a {width}x{height} grid")]
+    CellCount {
+        seq: u64,
+        count: usize,
+        width: u32,
+        height: u32,
+    },
+    #[error("world map {seq}: invalid geometry or pose")]
+    Geometry { seq: u64 },
+    #[error("world map {seq}: stamp {stamp} is not after the previous {previous}")]
+    OutOfOrder { seq: u64, stamp: u64, previous: u64 },
+}
+
+#[derive(Debug, Clone)]
+struct Track {
+    id: u32,
+    x: Vector4<f64>,
+    p: Matrix4<f64>,
+    born_ns: u64,
+    last_hit_ns: u64,
+    /// Hit (1) or miss (0) per map, newest in bit 0.
+    history: u32,
+    misses: u32,
+    confirmed: bool,
+    /// Summed class posteriors, indexed by contact class.
+    class_score: [f32; 5],
+    extent: [f32; 3],
+}
+
+impl Track {
+    fn class(&self) -> (u8, f32) {
+        let total: f32 = self.class_score.iter().sum();
+        let (k, v) = self
+            .class_score
+            .iter()
+            .enumerate()
+            .fold((0, 0.0f32), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
+        if total <= 0.0 {
+            (contact_class::UNKNOWN, 0.0)
+        } else {
+            (k as u8, v / total)
+        }
+    }
+}
+
+pub struct Tracker {
+    cfg: TrackerConfig,
+    model: Model,
+    detector: Detector,
+    detections: Vec<Detection>,
+    classes: Vec<(u8, f32)>,
+    tracks: Vec<Track>,
+    next_id: u32,
+    last_stamp: Option<u64>,
+}
+
+impl Tracker {
+    pub fn new(cfg: TrackerConfig, model: Model) -> Result<Self, TrackError> {
+        let bad = |m: &str| Err(TrackError::Config(m.to_string()));
+        if cfg.confirm_window == 0 || cfg.confirm_window > 32 || cfg.confirm_hits == 0 {
+            return bad("confirm_window must be 1..=32 and confirm_hits >= 1");
+        }
+        if cfg.confirm_hits > cfg.confirm_window {
+            return bad("confirm_hits must not exceed confirm_window");
+        }
+        let positive = [
+            cfg.accel_sigma,
+            cfg.range_sigma[0],
+            cfg.cross_sigma[0],
+            cfg.initial_speed_sigma,
+            cfg.gate_chi2,
+            cfg.max_coast_s,
+        ];
+        if positive.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+            return bad("noise, gate and coast settings must be > 0");
+        }
+        if model.validate().is_err() {
+            return bad("contact model is invalid");
+        }
+        Ok(Self {
+            cfg,
+            model,
+            detector: Detector::new(),
+            detections: Vec::new(),
+            classes: Vec::new(),
+            tracks: Vec::new(),
+            next_id: 1,
+            last_stamp: None,
+        })
+    }
+
+    /// Detections of the last map (for tools and tests).
+    pub fn detections(&self) -> &[Detection] {
+        &self.detections
+    }
+
+    /// Processes one world map and writes every track into `out` (ids ascending, confirmed ones
+    /// first when there are more than [`MAX_CONTACTS`]). On error nothing changes.
+    pub fn update(
+        &mut self,
+        hdr: &WorldMapHeader,
+        cells: &[MapCell],
+        source: &str,
+        out: &mut ContactList,
+    ) -> Result<(), TrackError> {
+        let g = hdr.grid;
+        let seq = hdr.hdr.seq;
+        if cells.len() != g.cell_count() {
+            return Err(TrackError::CellCount {
+                seq,
+                count: cells.len(),
+                width: g.width,
+                height: g.height,
+            });
+        }
+        let finite = g.resolution_m.is_finite()
+            && g.resolution_m > 0.0
+            && g.center.iter().all(|v| v.is_finite())
+            && hdr.vessel.position.iter().all(|v| v.is_finite());
+        if !finite {
+            return Err(TrackError::Geometry { seq });
+        }
+        let stamp = hdr.hdr.stamp_ns;
+        if let Some(prev) = self.last_stamp {
+            if stamp <= prev {
+                return Err(TrackError::OutOfOrder {
+                    seq,
+                    stamp,
+                    previous: prev,
+                });
+            }
+        }
+        let dt = self.last_stamp.map_or(0.0, |p| (stamp - p) as f64 * 1e-9);
+        self.last_stamp = Some(stamp);
+
+        self.detector.detect(
+            &g,
+            cells,
+            self.cfg.hazard_threshold,
+            self.cfg.min_cells,
+            self.cfg.max_detections,
+            &mut self.detections,
+        );
+        self.classes.clear();
+        for d in &self.detections {
+            self.classes.push(self.model.classify(d));
+        }
+        for t in &mut self.tracks {
+            predict(t, dt, self.cfg.accel_sigma);
+        }
+        let own = Vector2::new(hdr.vessel.position[0], hdr.vessel.position[1]);
+        let assigned = self.assign(own);
+        let nd = self.detections.len();
+        let mut used = vec![false; nd];
+        let window_mask = if self.cfg.confirm_window == 32 {
+            u32::MAX
+        } else {
+            (1u32 << self.cfg.confirm_window) - 1
+        };
+        for (ti, t) in self.tracks.iter_mut().enumerate() {
+            t.history = (t.history << 1) & window_mask;
+            match assigned[ti] {
+                Some(di) => {
+                    used[di] = true;
+                    let d = &self.detections[di];
+                    let r = measurement_noise(&self.cfg, own, d.position);
+                    kalman_update(t, Vector2::new(d.position[0], d.position[1]), &r);
+                    t.history |= 1;
+                    t.misses = 0;
+                    t.last_hit_ns = stamp;
+                    let (class, conf) = self.classes[di];
+                    t.class_score[class as usize % 5] += conf;
+                    t.extent = [d.extent[0] as f32, d.extent[1] as f32, d.height as f32];
+                    if t.history.count_ones() >= self.cfg.confirm_hits {
+                        t.confirmed = true;
+                    }
+                }
+                None => t.misses += 1,
+            }
+        }
+        let max_coast_ns = (self.cfg.max_coast_s * 1e9) as u64;
+        let tentative_misses = self.cfg.tentative_misses;
+        self.tracks.retain(|t| {
+            let inside = g.cell_of(t.x[0], t.x[1]).is_some();
+            inside
+                && if t.confirmed {
+                    stamp - t.last_hit_ns <= max_coast_ns
+                } else {
+                    t.misses < tentative_misses
+                }
+        });
+        for (di, d) in self.detections.iter().enumerate() {
+            if used[di] {
+                continue;
+            }
+            let r = measurement_noise(&self.cfg, own, d.position);
+            let s2 = self.cfg.initial_speed_sigma.powi(2);
+            let mut p = Matrix4::zeros();
+            p.fixed_view_mut::<2, 2>(0, 0).copy_from(&r);
+            p[(2, 2)] = s2;
+            p[(3, 3)] = s2;
+            let (class, conf) = self.classes[di];
+            let mut class_score = [0.0; 5];
+            class_score[class as usize % 5] = conf;
+            self.tracks.push(Track {
+                id: self.next_id,
+                x: Vector4::new(d.position[0], d.position[1], 0.0, 0.0),
+                p,
+                born_ns: stamp,
+                last_hit_ns: stamp,
+                history: 1,
+                misses: 0,
+                confirmed: self.cfg.confirm_hits <= 1,
+                class_score,
+                extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
+            });
+            self.next_id = self.next_id.wrapping_add(1).max(1);
+        }
+        self.write(stamp, hdr.hdr.seq, source, out);
+        Ok(())
+    }
+
+    /// Optimal gated assignment; returns the detection index per track.
+    fn assign(&self, own: Vector2<f64>) -> Vec<Option<usize>> {
+        let (nt, nd) = (self.tracks.len(), self.detections.len());
+        let mut out = vec![None; nt];
+        if nt == 0 || nd == 0 {
+            return out;
+        }
+        // Integer costs (Kuhn-Munkres needs `Ord`): squared Mahalanobis distance in 1/1000. One
+        // "no detection" column per track at the gate cost, so gating is part of the optimum.
+        const SCALE: f64 = 1000.0;
+        let gate = (self.cfg.gate_chi2 * SCALE) as i64;
+        let forbidden = gate * 4 * (nt as i64 + 1);
+        let mut d2 = vec![f64::INFINITY; nt * nd];
+        let mut m = Matrix::new(nt, nd + nt, forbidden);
+        for (ti, t) in self.tracks.iter().enumerate() {
+            let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+            for (di, d) in self.detections.iter().enumerate() {
+                let r = measurement_noise(&self.cfg, own, d.position);
+                let s = h * t.p * h.transpose() + r;
+                let Some(si) = s.try_inverse() else { continue };
+                let y = Vector2::new(d.position[0] - t.x[0], d.position[1] - t.x[1]);
+                let v = (y.transpose() * si * y)[0];
+                d2[ti * nd + di] = v;
+                if v < self.cfg.gate_chi2 {
+                    m[(ti, di)] = (v * SCALE) as i64;
+                }
+            }
+            m[(ti, nd + ti)] = gate;
+        }
+        let (_, cols) = kuhn_munkres_min(&m);
+        for (ti, &c) in cols.iter().enumerate() {
+            if c < nd && d2[ti * nd + c] < self.cfg.gate_chi2 {
+                out[ti] = Some(c);
+            }
+        }
+        out
+    }
+
+    fn write(&self, stamp: u64, seq: u64, source: &str, out: &mut ContactList) {
+        out.hdr = Header::new(seq, stamp, source);
+        let mut n = 0;
+        // Confirmed first when the list would overflow, each group in id order.
+        let overflow = self.tracks.len() > MAX_CONTACTS;
+        for pass in 0..2 {
+            for t in &self.tracks {
+                if n == MAX_CONTACTS {
+                    break;
+                }
+                let take = if overflow {
+                    (pass == 0) == t.confirmed
+                } else {
+                    pass == 0
+                };
+                if !take {
+                    continue;
+                }
+                let (class, conf) = t.class();
+                let mut cov = [0f32; 16];
+                for (k, c) in cov.iter_mut().enumerate() {
+                    *c = t.p[(k / 4, k % 4)] as f32;
+                }
+                out.contacts[n] = Contact {
+                    id: t.id,
+                    class,
+                    confirmed: t.confirmed as u8,
+                    coasting: (t.misses > 0) as u8,
+                    _pad: 0,
+                    class_confidence: conf,
+                    position: [t.x[0], t.x[1]],
+                    velocity: [t.x[2], t.x[3]],
+                    covariance: cov,
+                    extent: t.extent,
+                    age_s: ((stamp - t.born_ns) as f64 * 1e-9) as f32,
+                };
+                n += 1;
+            }
+        }
+        if overflow {
+            out.contacts[..n].sort_by_key(|c| c.id);
+        }
+        out.count = n as u32;
+    }
+}
+
+fn predict(t: &mut Track, dt: f64, accel_sigma: f64) {
+    if dt <= 0.0 {
+        return;
+    }
+    let f = Matrix4::new(
+        1.0, 0.0, dt, 0.0, //
+        0.0, 1.0, 0.0, dt, //
+        0.0, 0.0, 1.0, 0.0, //
+        0.0, 0.0, 0.0, 1.0,
+    );
+    // Discrete white-noise acceleration.
+    let q2 = accel_sigma * accel_sigma;
+    let (a, b, c) = (dt.powi(4) / 4.0 * q2, dt.powi(3) / 2.0 * q2, dt * dt * q2);
+    let q = Matrix4::new(
+        a, 0.0, b, 0.0, //
+        0.0, a, 0.0, b, //
+        b, 0.0, c, 0.0, //
+        0.0, b, 0.0, c,
+    );
+    t.x = f * t.x;
+    t.p = f * t.p * f.transpose() + q;
+}
+
+fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
+    let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+    let s = h * t.p * h.transpose() + r;
+    let Some(si) = s.try_inverse() else { return };
+    let k = t.p * h.transpose() * si;
+    let y = z - h * t.x;
+    t.x += k * y;
+    // Joseph form keeps P symmetric and positive.
+    let i_kh = Matrix4::identity() - k * h;
+    t.p = i_kh * t.p * i_kh.transpose() + k * r * k.transpose();
+}
+
+/// Position noise of a detection at `pos` seen from `own`: larger along the line of sight.
+pub fn measurement_noise(cfg: &TrackerConfig, own: Vector2<f64>, pos: [f64; 2]) -> Matrix2<f64> {
+    let los = Vector2::new(pos[0], pos[1]) - own;
+    let range = los.norm();
+    let u = if range > 1e-6 {
+        los / range
+    } else {
+        Vector2::new(1.0, 0.0)
+    };
+    let v = Vector2::new(-u[1], u[0]);
+    let sr = cfg.range_sigma[0] + cfg.range_sigma[1] * range;
+    let sc = cfg.cross_sigma[0] + cfg.cross_sigma[1] * range;
+    u * u.transpose() * (sr * sr) + v * v.transpose() * (sc * sc)
+}

@@ -1,0 +1,297 @@
+//! Training data and fitting for the contact classifier.
+//!
+//! The labelled examples come from simulator ground truth rasterized into a world-map-like grid
+//! with a noise model of what stereo sees: only the side facing the vessel, cells dropped more often
+//! with range, positions spread along the line of sight with range, heights under-estimated, and
+//! spurious small low blobs from waves as false alarms. It is rasterized truth, not perception
+//! output: the model is only as good as that noise model, and should be retrained on recorded
+//! perception maps once they are labelled.
+
+use crate::classify::{features, ClassModel, Model, CLASSES, FEATURES};
+use crate::detect::{Detection, Detector};
+use messages::{contact_class, GridGeometry, MapCell};
+
+/// An object to rasterize: contact class, ENU centre, heading, length, width, height (m).
+#[derive(Debug, Clone, Copy)]
+pub struct TruthShape {
+    pub class: u8,
+    pub position: [f64; 2],
+    pub yaw: f64,
+    pub size: [f64; 3],
+}
+
+/// Noise model parameters.
+#[derive(Debug, Clone)]
+pub struct NoiseModel {
+    /// Nothing beyond this range is seen (m).
+    pub max_range: f64,
+    /// Probability that a visible cell is missed, at range 0 and at `max_range`.
+    pub drop: [f64; 2],
+    /// Along-line-of-sight position spread: sigma = a + b * range (m).
+    pub spread: [f64; 2],
+    /// Spurious wave blobs per map.
+    pub wave_blobs: u32,
+}
+
+impl Default for NoiseModel {
+    fn default() -> Self {
+        Self {
+            max_range: 70.0,
+            drop: [0.05, 0.45],
+            spread: [0.1, 0.015],
+            wave_blobs: 6,
+        }
+    }
+}
+
+/// Small deterministic generator (SplitMix64): examples must be reproducible bit for bit.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Self(seed ^ 0x9e37_79b9_7f4a_7c15)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn gauss(&mut self) -> f64 {
+        let (u1, u2) = (self.uniform().max(1e-12), self.uniform());
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+}
+
+/// Rasterizes `objects` and the `shore` (a land test on ENU points) around `own` into `cells`
+/// over `grid`, recording in `owner` the index + 1 of the object each cell came from
+/// (`objects.len() + 1` for shore, `u32::MAX` for wave blobs, 0 for none).
+#[allow(clippy::too_many_arguments)]
+pub fn rasterize(
+    grid: &GridGeometry,
+    own: [f64; 2],
+    objects: &[TruthShape],
+    shore: &dyn Fn(f64, f64) -> Option<f64>,
+    noise: &NoiseModel,
+    rng: &mut Rng,
+    cells: &mut [MapCell],
+    owner: &mut [u32],
+) {
+    cells.fill(MapCell::default());
+    owner.fill(0);
+    let r = grid.resolution_m;
+    let mut put = |cells: &mut [MapCell], x: f64, y: f64, hazard: u8, height: f64, who: u32| {
+        if let Some((c, w)) = grid.cell_of(x, y) {
+            let i = (w * grid.width + c) as usize;
+            let cell = &mut cells[i];
+            if hazard > cell.hazard {
+                cell.hazard = hazard;
+                owner[i] = who;
+            }
+            cell.max_height_cm = cell.max_height_cm.max((height * 100.0) as i16);
+            cell.observed = cell.observed.saturating_add(1);
+        }
+    };
+    for (k, o) in objects.iter().enumerate() {
+        let range = (o.position[0] - own[0]).hypot(o.position[1] - own[1]);
+        if range > noise.max_range || range < 1.0 {
+            continue;
+        }
+        let u = [
+            (o.position[0] - own[0]) / range,
+            (o.position[1] - own[1]) / range,
+        ];
+        let frac = range / noise.max_range;
+        let drop = noise.drop[0] + (noise.drop[1] - noise.drop[0]) * frac;
+        let sigma = noise.spread[0] + noise.spread[1] * range;
+        let (s, c) = o.yaw.sin_cos();
+        let (len, wid) = (o.size[0].max(r), o.size[1].max(r));
+        let step = r * 0.5;
+        let (na, nc) = ((len / step).ceil() as i64, (wid / step).ceil() as i64);
+        for ia in 0..=na {
+            for ic in 0..=nc {
+                let a = -len / 2.0 + len * ia as f64 / na.max(1) as f64;
+                let b = -wid / 2.0 + wid * ic as f64 / nc.max(1) as f64;
+                let (dx, dy) = (a * c - b * s, a * s + b * c);
+                // Only the side facing the vessel reflects range points.
+                if dx * u[0] + dy * u[1] > 0.25 * (len.min(wid)) + r {
+                    continue;
+                }
+                if rng.uniform() < drop {
+                    continue;
+                }
+                let e = rng.gauss() * sigma;
+                let hazard = (255.0 * (0.6 + 0.4 * rng.uniform())) as u8;
+                let height = o.size[2] * (0.7 + 0.3 * rng.uniform());
+                put(
+                    cells,
+                    o.position[0] + dx + e * u[0],
+                    o.position[1] + dy + e * u[1],
+                    hazard,
+                    height,
+                    k as u32 + 1,
+                );
+            }
+        }
+    }
+    // Shore: land cells facing the vessel within range, as a band a few metres deep.
+    let shore_id = objects.len() as u32 + 1;
+    for row in 0..grid.height {
+        for col in 0..grid.width {
+            let [x, y] = grid.cell_center(col, row);
+            let range = (x - own[0]).hypot(y - own[1]);
+            if range > noise.max_range || range < 1.0 {
+                continue;
+            }
+            let Some(h) = shore(x, y) else { continue };
+            // Visible if the point a few metres closer along the line of sight is water.
+            let back = 4.0 / range;
+            if shore(x - (x - own[0]) * back, y - (y - own[1]) * back).is_some() {
+                continue;
+            }
+            let drop = noise.drop[0] + (noise.drop[1] - noise.drop[0]) * range / noise.max_range;
+            if rng.uniform() < drop {
+                continue;
+            }
+            let hazard = (255.0 * (0.6 + 0.4 * rng.uniform())) as u8;
+            put(
+                cells,
+                x,
+                y,
+                hazard,
+                h * (0.7 + 0.3 * rng.uniform()),
+                shore_id,
+            );
+        }
+    }
+    // Wave blobs: 1 to 5 cells, low, moderate hazard, anywhere in range.
+    for _ in 0..noise.wave_blobs {
+        let ang = rng.uniform() * std::f64::consts::TAU;
+        let range = 5.0 + rng.uniform() * (noise.max_range - 5.0);
+        let (x, y) = (own[0] + range * ang.cos(), own[1] + range * ang.sin());
+        if shore(x, y).is_some() {
+            continue;
+        }
+        let n = 1 + (rng.uniform() * 5.0) as u32;
+        let height = 0.1 + 0.5 * rng.uniform();
+        let hazard = (130.0 + 90.0 * rng.uniform()) as u8;
+        let (mut px, mut py) = (x, y);
+        for _ in 0..n {
+            put(cells, px, py, hazard, height, u32::MAX);
+            px += (rng.uniform() - 0.5) * 2.0 * r;
+            py += (rng.uniform() - 0.5) * 2.0 * r;
+        }
+    }
+}
+
+/// Labels each detection by the source owning most of its cells: the class of that object,
+/// EXTENDED for shore, FALSE_ALARM for wave blobs.
+pub fn label_detections(
+    grid: &GridGeometry,
+    cells: &[MapCell],
+    owner: &[u32],
+    objects: &[TruthShape],
+    detector: &mut Detector,
+    threshold: u8,
+    out: &mut Vec<(Detection, u8)>,
+) {
+    let mut dets = Vec::new();
+    detector.detect(grid, cells, threshold, 1, 4096, &mut dets);
+    // Majority owner per detection: the owner of the cells nearest its centroid and extent box.
+    for d in dets {
+        let mut votes: Vec<(u32, u32)> = Vec::new();
+        let r = grid.resolution_m;
+        let (hx, hy) = (d.extent[0] / 2.0 + r, d.extent[1] / 2.0 + r);
+        let mut y = d.position[1] - hy;
+        while y <= d.position[1] + hy {
+            let mut x = d.position[0] - hx;
+            while x <= d.position[0] + hx {
+                if let Some((c, w)) = grid.cell_of(x, y) {
+                    let i = (w * grid.width + c) as usize;
+                    if cells[i].hazard >= threshold && owner[i] != 0 {
+                        match votes.iter_mut().find(|v| v.0 == owner[i]) {
+                            Some(v) => v.1 += 1,
+                            None => votes.push((owner[i], 1)),
+                        }
+                    }
+                }
+                x += r;
+            }
+            y += r;
+        }
+        votes.sort_by_key(|v| (std::cmp::Reverse(v.1), v.0));
+        let Some(&(who, _)) = votes.first() else {
+            continue;
+        };
+        let class = if who == u32::MAX {
+            contact_class::FALSE_ALARM
+        } else if who as usize > objects.len() {
+            contact_class::EXTENDED
+        } else {
+            objects[who as usize - 1].class
+        };
+        out.push((d, class));
+    }
+}
+
+/// Fits a Gaussian naive-Bayes model with equal priors (the class mix of training maps says little
+/// about the mix at sea). Variances get a floor so a class with few samples does not become spiky.
+pub fn fit(samples: &[(Detection, u8)], provenance: String) -> Result<Model, String> {
+    let mut classes = Vec::new();
+    for class in CLASSES {
+        let xs: Vec<[f64; 5]> = samples
+            .iter()
+            .filter(|s| s.1 == class)
+            .map(|s| features(&s.0))
+            .collect();
+        if xs.len() < 5 {
+            return Err(format!(
+                "only {} examples of class {}",
+                xs.len(),
+                contact_class::name(class)
+            ));
+        }
+        let n = xs.len() as f64;
+        let mean: Vec<f64> = (0..FEATURES.len())
+            .map(|j| xs.iter().map(|x| x[j]).sum::<f64>() / n)
+            .collect();
+        let var: Vec<f64> = (0..FEATURES.len())
+            .map(|j| (xs.iter().map(|x| (x[j] - mean[j]).powi(2)).sum::<f64>() / n).max(1e-3))
+            .collect();
+        classes.push(ClassModel {
+            class,
+            name: contact_class::name(class).to_string(),
+            prior: 1.0 / CLASSES.len() as f64,
+            mean,
+            var,
+        });
+    }
+    let model = Model {
+        version: Model::VERSION,
+        features: FEATURES.iter().map(|s| s.to_string()).collect(),
+        classes,
+        provenance,
+    };
+    model.validate()?;
+    Ok(model)
+}
+
+/// Per-class accuracy (recall) on `samples`: (class, correct, total).
+pub fn accuracy(model: &Model, samples: &[(Detection, u8)]) -> Vec<(u8, u32, u32)> {
+    CLASSES
+        .iter()
+        .map(|&class| {
+            let mut ok = 0;
+            let mut n = 0;
+            for (d, c) in samples.iter().filter(|s| s.1 == class) {
+                n += 1;
+                ok += (model.classify(d).0 == *c) as u32;
+            }
+            (class, ok, n)
+        })
+        .collect()
+}

@@ -1,0 +1,102 @@
+//! Tracking with the committed contact model: a blob moving at 5 m/s across a sequence of world
+//! maps gives one confirmed track with a stable id and its speed within 4 %.
+
+use messages::{contact_class, ContactList, GridGeometry, Header, MapCell, Pose, WorldMapHeader};
+use std::path::Path;
+use tracker::{Model, Tracker, TrackerConfig};
+
+fn model() -> Model {
+    Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json")).unwrap()
+}
+
+#[test]
+fn a_boat_moving_at_5_mps_gives_one_confirmed_track_with_a_stable_id() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = GridGeometry {
+        width: 200,
+        height: 200,
+        resolution_m: 0.5,
+        center: [0.0, 0.0],
+    };
+    let mut list = Box::<ContactList>::default();
+    let mut ids = Vec::new();
+    // 6 m x 2.5 m boat heading north-east at 5 m/s, 10 Hz, 8 s.
+    let (vx, vy) = (5.0 * 0.6f64.cos(), 5.0 * 0.6f64.sin());
+    for k in 0..80u64 {
+        let time = k as f64 * 0.1;
+        let (bx, by) = (-20.0 + vx * time, -15.0 + vy * time);
+        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        for row in 0..grid.height {
+            for col in 0..grid.width {
+                let [x, y] = grid.cell_center(col, row);
+                let (dx, dy) = (x - bx, y - by);
+                let along = dx * 0.6f64.cos() + dy * 0.6f64.sin();
+                let across = -dx * 0.6f64.sin() + dy * 0.6f64.cos();
+                if along.abs() <= 3.0 && across.abs() <= 1.25 {
+                    cells[(row * grid.width + col) as usize] = MapCell {
+                        hazard: 230,
+                        max_height_cm: 150,
+                        observed: 3,
+                        ..Default::default()
+                    };
+                }
+            }
+        }
+        let hdr = WorldMapHeader {
+            hdr: Header::new(k, 1_000_000_000 + k * 100_000_000, "test"),
+            grid,
+            vessel: Pose::default(),
+            fused: k,
+        };
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        assert_eq!(list.hdr.stamp_ns, hdr.hdr.stamp_ns);
+        for c in list.as_slice().iter().filter(|c| c.confirmed == 1) {
+            ids.push(c.id);
+        }
+    }
+    let confirmed: Vec<_> = list
+        .as_slice()
+        .iter()
+        .filter(|c| c.confirmed == 1)
+        .collect();
+    assert_eq!(confirmed.len(), 1, "{:?}", list.as_slice());
+    let c = confirmed[0];
+    assert!(
+        ids.iter().all(|&id| id == c.id),
+        "track id changed: {ids:?}"
+    );
+    assert!(ids.len() >= 70, "confirmed late: {}", ids.len());
+    let speed = c.velocity[0].hypot(c.velocity[1]);
+    assert!((speed - 5.0).abs() / 5.0 < 0.04, "speed {speed}");
+    assert_eq!(c.class, contact_class::BOAT, "{c:?}");
+    assert_eq!(c.coasting, 0);
+    assert!((c.age_s - 7.9).abs() < 1e-3);
+}
+
+#[test]
+fn the_tracker_is_deterministic_and_rejects_bad_maps() {
+    let grid = GridGeometry {
+        width: 40,
+        height: 40,
+        resolution_m: 0.5,
+        center: [0.0, 0.0],
+    };
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let mut list = Box::<ContactList>::default();
+    let hdr = WorldMapHeader {
+        hdr: Header::new(0, 5, "t"),
+        grid,
+        ..Default::default()
+    };
+    let e = t
+        .update(&hdr, &vec![MapCell::default(); 1599], "t", &mut list)
+        .unwrap_err();
+    assert!(e.to_string().contains("1599 cells for a 40x40 grid"), "{e}");
+    t.update(&hdr, &vec![MapCell::default(); 1600], "t", &mut list)
+        .unwrap();
+    assert!(
+        t.update(&hdr, &vec![MapCell::default(); 1600], "t", &mut list)
+            .is_err(),
+        "same stamp twice"
+    );
+}
