@@ -218,6 +218,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 runtime::domain::DOMAIN_ENV,
                 format!("bench{}", std::process::id()),
             );
+            if bench::run_service_bench(&name, quick)? {
+                return Ok(());
+            }
             let figures = match name.as_str() {
                 "ipc" => bench::ipc::run(quick)?,
                 "recorder" => bench::recorder(quick)?,

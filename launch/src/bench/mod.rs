@@ -41,7 +41,41 @@ impl Figure {
     }
 }
 
-pub const NAMES: &[&str] = &["ipc", "recorder", "sim", "pipeline"];
+pub const NAMES: &[&str] = &["ipc", "recorder", "sim", "pipeline", "mapper", "tracker"];
+
+/// Benchmarks that live in a service's own binary (`<program> bench ...`): `usv bench` runs them so
+/// every figure has one entry point. Arguments may name checkout files (`@` + relative path).
+const SERVICE_BENCHES: &[(&str, &str, &[&str])] = &[
+    ("mapper", "mapper", &[]),
+    (
+        "tracker",
+        "tracker",
+        &["--config", "@launch/sets/tracker.toml"],
+    ),
+];
+
+/// Runs a service's own benchmark if `name` is one; its output goes straight to the terminal.
+pub fn run_service_bench(name: &str, quick: bool) -> anyhow::Result<bool> {
+    let Some((_, program, args)) = SERVICE_BENCHES.iter().find(|(n, _, _)| *n == name) else {
+        return Ok(false);
+    };
+    let exe = crate::launchfile::resolve_program(program, std::path::Path::new("."))
+        .ok_or_else(|| anyhow::anyhow!("the `{program}` program was not found next to usv"))?;
+    let mut cmd = std::process::Command::new(exe);
+    cmd.arg("bench");
+    for a in args.iter() {
+        match a.strip_prefix('@') {
+            Some(file) => cmd.arg(crate::session::checkout_file(file)?),
+            None => cmd.arg(a),
+        };
+    }
+    if quick {
+        cmd.arg("--quick");
+    }
+    let status = cmd.status()?;
+    anyhow::ensure!(status.success(), "`{program} bench` failed: {status}");
+    Ok(true)
+}
 
 /// `usv bench recorder`: the recorder's MCAP writer against a plain file write of the same bytes,
 /// then the recorder process live: 2 heads x 1280x960 mono pairs at 10 Hz over shared memory.
