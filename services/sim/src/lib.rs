@@ -17,6 +17,7 @@ pub mod dynamics;
 pub mod ins;
 pub mod math;
 pub mod noise;
+pub mod rectify;
 pub mod render;
 pub mod scenario;
 pub mod truth;
@@ -25,6 +26,7 @@ pub mod world;
 pub use camera::{Camera, Encoding, StereoHead};
 pub use dynamics::{Command, Vehicle, VehicleState};
 pub use ins::{Ins, InsNoise, InsSample};
+pub use rectify::{HeadCalibration, Lens, RectifiedView};
 pub use render::{RenderError, Renderer};
 pub use scenario::{Scenario, ScenarioError};
 pub use truth::{ObjectTruth, WaterRegion, WorldTruth};
@@ -107,7 +109,10 @@ impl Simulator {
         )
     }
 
-    /// Per-pixel ground truth (disparity, labels) for the left image of head `head`.
+    /// Per-pixel ground truth (disparity, labels) in the rectified left view of head `head`
+    /// ([`StereoHead::rectified`]; the left image itself for an ideal head), each buffer
+    /// `view.width * view.height`. Callers that render every frame compute the view once and use
+    /// [`Self::render_truth_view`].
     pub fn render_truth(
         &mut self,
         head: usize,
@@ -115,14 +120,43 @@ impl Simulator {
         labels: &mut [u8],
     ) -> Result<(), RenderError> {
         let h = &self.world.heads[head];
+        let view = h.rectified().map_err(|source| RenderError::Rectify {
+            head: h.name.clone(),
+            source,
+        })?;
+        self.render_truth_view(head, &view, disparity, labels)
+    }
+
+    /// [`Self::render_truth`] for a view computed by the caller.
+    pub fn render_truth_view(
+        &mut self,
+        head: usize,
+        view: &RectifiedView,
+        disparity: &mut [f32],
+        labels: &mut [u8],
+    ) -> Result<(), RenderError> {
+        let h = &self.world.heads[head];
         self.renderer.render_truth(
             &self.world,
             h,
+            view,
             &self.vehicle.state.pose,
             self.time,
             disparity,
             labels,
         )
+    }
+
+    /// Renders what `cam` sees at the current time (see [`Renderer::render_camera`]).
+    pub fn render_camera(
+        &mut self,
+        head: usize,
+        cam: &Camera,
+        out: &mut [u8],
+    ) -> Result<(), RenderError> {
+        let h = &self.world.heads[head];
+        self.renderer
+            .render_camera(&self.world, h, cam, self.time, out)
     }
 
     /// Objects and water regions at the current time.

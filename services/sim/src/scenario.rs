@@ -242,6 +242,17 @@ pub struct HeadSpec {
     pub mount_rpy_deg: [f64; 3],
     #[serde(default = "d1")]
     pub pixel_noise: f64,
+    /// Yaw of both cameras on the bar, degrees (positive = left). The baseline stays along the
+    /// bar's y axis; 0 = an ideal rectified pair.
+    #[serde(default)]
+    pub toe_deg: f64,
+    /// Radial lens distortion (OpenCV k1, k2 on normalized coordinates).
+    #[serde(default)]
+    pub k1: f64,
+    #[serde(default)]
+    pub k2: f64,
+    /// Rectified view size relative to the raw images (default 1.2 for toed heads, else 1).
+    pub oversize: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
@@ -607,7 +618,27 @@ impl Builder<'_> {
                 &f("name"),
                 "duplicate head name",
             )?;
-            heads.push(StereoHead {
+            self.check(
+                h.toe_deg.abs() < 60.0,
+                &f("toe_deg"),
+                "must be within -60..60",
+            )?;
+            self.check(
+                h.k1.abs() <= 0.5 && h.k2.abs() <= 0.5,
+                &f("k1"),
+                "distortion k1, k2 must be within -0.5..0.5",
+            )?;
+            let oversize = h.oversize.unwrap_or(if h.toe_deg != 0.0 {
+                crate::camera::TOED_OVERSIZE
+            } else {
+                1.0
+            });
+            self.check(
+                (0.5..=3.0).contains(&oversize),
+                &f("oversize"),
+                "must be within 0.5..3",
+            )?;
+            let head = StereoHead {
                 name: h.name.clone(),
                 width: h.width,
                 height: h.height,
@@ -616,7 +647,15 @@ impl Builder<'_> {
                 encoding: h.encoding,
                 mount: Pose::new(h.mount_xyz, h.mount_rpy_deg.map(f64::to_radians)),
                 pixel_noise: h.pixel_noise as f32,
-            });
+                toe: h.toe_deg.to_radians(),
+                k1: h.k1,
+                k2: h.k2,
+                oversize,
+            };
+            if let Err(e) = head.rectified() {
+                self.check(false, &f("toe_deg"), &format!("cannot be rectified: {e}"))?;
+            }
+            heads.push(head);
         }
         Ok(heads)
     }

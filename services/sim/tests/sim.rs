@@ -45,8 +45,10 @@ fn render(sim: &mut Simulator, head: usize) -> (Vec<u8>, Vec<u8>) {
     (l, r)
 }
 
+/// Truth in the head's rectified left view (the left image itself for an ideal head).
 fn truth(sim: &mut Simulator, head: usize) -> (Vec<f32>, Vec<u8>) {
-    let n = sim.world.heads[head].pixel_count();
+    let view = sim.world.heads[head].rectified().unwrap();
+    let n = view.width * view.height;
     let (mut d, mut l) = (vec![0.0; n], vec![0; n]);
     sim.render_truth(head, &mut d, &mut l).unwrap();
     (d, l)

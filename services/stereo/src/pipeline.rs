@@ -7,8 +7,31 @@ use crate::disparity::{build_matcher, DisparityMap, DisparityMatcher, MatchError
 use crate::image::{GrayImage, GrayView, ImageError};
 use crate::plane::{PlaneError, PlaneFitter, PlaneParams, WaterPlane};
 use crate::range::collect_points;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::Deserialize;
+
+/// Rotation taking optical vectors (x right, y down, z forward) into body-like axes (x forward,
+/// y left, z up), the axes a mount's roll, pitch and yaw turn.
+fn bodylike_from_optical() -> Matrix3<f64> {
+    Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0)
+}
+
+/// The mount of the rectified (virtual) left camera, the frame the disparity and the water plane
+/// refer to, from the mount of the real left camera (both on the body: x forward, y left, z up).
+/// Same optical centre; the attitude is turned by the rectification, which for heads yawed on a
+/// common bar is the full toe angle.
+pub fn rectified_mount(raw: &messages::Pose, rect_from_left: &Matrix3<f64>) -> messages::Pose {
+    let b = bodylike_from_optical();
+    let body_from_raw = Rotation3::from_euler_angles(raw.roll, raw.pitch, raw.yaw);
+    let m = body_from_raw.matrix() * b * rect_from_left.transpose() * b.transpose();
+    let (roll, pitch, yaw) = Rotation3::from_matrix(&m).euler_angles();
+    messages::Pose {
+        position: raw.position,
+        roll,
+        pitch,
+        yaw,
+    }
+}
 
 /// Where the water plane is looked for.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -90,6 +113,11 @@ impl FramePipeline {
         self.rectifier.camera()
     }
 
+    /// Rotation from the raw left camera frame to the rectified one.
+    pub fn rect_from_left(&self) -> Matrix3<f64> {
+        self.rectifier.rect_from_left()
+    }
+
     /// Raw frame size the calibration expects (width, height).
     pub fn raw_size(&self) -> (usize, usize) {
         self.raw_size
@@ -140,4 +168,93 @@ pub enum PipelineSetupError {
     Calibration(#[from] CalibError),
     #[error(transparent)]
     Matcher(#[from] MatchError),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calib::{Calibration, Intrinsics};
+
+    fn lens() -> Intrinsics {
+        Intrinsics {
+            fx: 554.0,
+            fy: 554.0,
+            cx: 319.5,
+            cy: 239.5,
+            k1: 0.0,
+            k2: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        }
+    }
+
+    /// A point at a known body position, seen by a pair toed 20 deg left on a bar pitched 4 deg
+    /// down, comes back at that position through rectified disparity, `CameraModel::point` and the
+    /// published (rectified) mount, as perception and water detection transform it.
+    #[test]
+    fn rectified_disparity_and_mount_give_back_body_points() {
+        let toe = 20f64.to_radians();
+        let b = 1.0;
+        let bar = Rotation3::from_euler_angles(0.0, 4f64.to_radians(), 0.0);
+        let bar_pos = Vector3::new(0.5, 0.1, 3.0);
+        let left_pos = bar_pos + bar * Vector3::new(0.0, b / 2.0, 0.0);
+        let body_from_left = bar * Rotation3::from_euler_angles(0.0, 0.0, toe);
+        let calib = Calibration {
+            width: 640,
+            height: 480,
+            left: lens(),
+            right: lens(),
+            rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            translation: [-b * toe.cos(), 0.0, b * toe.sin()],
+            oversize: 1.2,
+        };
+        let rect = crate::calib::Rectifier::new(&calib).unwrap();
+        let cam = rect.camera();
+        let (roll, pitch, yaw) = body_from_left.euler_angles();
+        let raw = messages::Pose {
+            position: left_pos.into(),
+            roll,
+            pitch,
+            yaw,
+        };
+        let mount = rectified_mount(&raw, &rect.rect_from_left());
+        // The rectified camera has the bar's attitude: the toe is undone, the pitch kept.
+        assert!(mount.yaw.abs() < 1e-9, "yaw {}", mount.yaw.to_degrees());
+        assert!((mount.pitch - 4f64.to_radians()).abs() < 1e-9);
+        assert!(mount.roll.abs() < 1e-9);
+        let model = messages::CameraModel {
+            fx: cam.f,
+            fy: cam.f,
+            cx: cam.cx,
+            cy: cam.cy,
+            baseline_m: cam.baseline,
+            mount,
+        };
+        let b_opt = bodylike_from_optical();
+        let body_from_rect = Rotation3::from_euler_angles(mount.roll, mount.pitch, mount.yaw);
+        for p_body in [
+            Vector3::new(30.0, 12.0, 0.5),
+            Vector3::new(12.0, -1.0, 0.0),
+            Vector3::new(60.0, 40.0, 4.0),
+        ] {
+            // Project through the real left camera, then the rectification (the right camera of
+            // the rectified pair is the left one moved by the baseline along x).
+            let raw_opt = b_opt.transpose() * (body_from_left.inverse() * (p_body - left_pos));
+            let q = rect.rect_from_left() * raw_opt;
+            let ul = cam.f * q.x / q.z + cam.cx;
+            let vl = cam.f * q.y / q.z + cam.cy;
+            let ur = cam.f * (q.x - cam.baseline) / q.z + cam.cx;
+            let p = model.point(ul, vl, (ul - ur) as f32).unwrap();
+            let back = body_from_rect * (b_opt * Vector3::from(p)) + Vector3::from(mount.position);
+            // f32 disparity: relative precision ~1e-7 of the range.
+            assert!(
+                (back - p_body).norm() < 1e-5 * p_body.norm(),
+                "{p_body:?} came back at {back:?}"
+            );
+            // Through the real camera's mount instead the point lands elsewhere (toe not undone).
+            let wrong = body_from_left * (b_opt * Vector3::from(p)) + left_pos;
+            assert!((wrong - p_body).norm() > 0.2 * p_body.norm());
+        }
+    }
 }

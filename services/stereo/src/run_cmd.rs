@@ -19,7 +19,8 @@ pub struct RunArgs {
     config: PathBuf,
 }
 
-/// Mounting of the left camera on the body (x forward, y left, z up; angles in degrees).
+/// Mounting of the real left camera on the body (x forward, y left, z up; angles in degrees). The
+/// published `CameraModel::mount` is the rectified left camera's, derived from this.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 struct Mount {
@@ -76,9 +77,25 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             let pipeline = FramePipeline::new(&c, &config.matcher, config.plane.clone())?;
             Ok((pipeline, c.width, c.height))
         });
+    let raw_mount = Pose {
+        position: config.mount.position,
+        roll: config.mount.roll_deg.to_radians(),
+        pitch: config.mount.pitch_deg.to_radians(),
+        yaw: config.mount.yaw_deg.to_radians(),
+    };
+    let mut mount = raw_mount;
     let mut pipeline = match pipeline {
         Ok((pipeline, width, height)) => {
-            tracing::info!(head = %config.head, matcher = ?config.matcher, "stereo ready for {width}x{height} frames");
+            // Disparity, range and the water plane are in the rectified left camera's frame.
+            mount = stereo::pipeline::rectified_mount(&raw_mount, &pipeline.rect_from_left());
+            let cam = pipeline.camera();
+            tracing::info!(
+                head = %config.head,
+                matcher = ?config.matcher,
+                rectified = ?(cam.width, cam.height, cam.f),
+                mount = ?mount,
+                "stereo ready for {width}x{height} frames"
+            );
             Ok(pipeline)
         }
         Err(e) => {
@@ -93,12 +110,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut out = service.publisher(&topics::DISPARITY)?;
     let mut worker = Worker {
         head: config.head.clone(),
-        mount: Pose {
-            position: config.mount.position,
-            roll: config.mount.roll_deg.to_radians(),
-            pitch: config.mount.pitch_deg.to_radians(),
-            yaw: config.mount.yaw_deg.to_radians(),
-        },
+        mount,
         gray: Vec::new(),
         ins: None,
         source: service.name().to_string(),
@@ -142,6 +154,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
 
 struct Worker {
     head: String,
+    /// The rectified left camera on the body.
     mount: Pose,
     /// Packed Mono8 planes (left then right) when a frame needs conversion or repacking.
     gray: Vec<u8>,
@@ -211,7 +224,9 @@ impl Worker {
             },
             Err(_) => messages::WaterPlane::default(),
         };
-        // Heading and position from the INS; roll and pitch from the water when it was seen.
+        // Heading and position from the INS; roll and pitch from the water when it was seen. The
+        // plane is fitted in the rectified left camera's frame, so its roll and pitch are that
+        // camera's attitude over the water (the camera `mount` above is the same rectified one).
         let stabilized_pose = self.ins.map_or(Pose::default(), |ins| {
             let mut pose = ins.pose;
             if plane.valid == 1 {

@@ -20,10 +20,11 @@ pub struct Args {
     /// Also write the right image here.
     #[arg(long)]
     right: Option<PathBuf>,
-    /// Also write the left image's ground-truth disparity, as an 8-bit PNG scaled to its maximum.
+    /// Also write ground-truth disparity (in the rectified left view), as an 8-bit PNG scaled to its
+    /// maximum.
     #[arg(long)]
     truth_disparity: Option<PathBuf>,
-    /// Also write the left image's ground-truth labels as a colour PNG.
+    /// Also write ground-truth labels (in the rectified left view) as a colour PNG.
     #[arg(long)]
     labels: Option<PathBuf>,
     /// Downscale all outputs by this integer factor (box filter), e.g. for documentation thumbnails.
@@ -72,9 +73,12 @@ pub fn run(args: Args) -> Result<()> {
         save(p, &right, w, ht, color, args.downscale)?;
     }
     if args.truth_disparity.is_some() || args.labels.is_some() {
-        let mut disp = vec![0f32; h.pixel_count()];
-        let mut labels = vec![0u8; h.pixel_count()];
-        sim.render_truth(head, &mut disp, &mut labels)?;
+        // Truth is in the rectified left view (the left image itself for an ideal head).
+        let view = h.rectified()?;
+        let (w, ht) = (view.width as u32, view.height as u32);
+        let mut disp = vec![0f32; view.width * view.height];
+        let mut labels = vec![0u8; view.width * view.height];
+        sim.render_truth_view(head, &view, &mut disp, &mut labels)?;
         if let Some(p) = &args.truth_disparity {
             let max = disp
                 .iter()

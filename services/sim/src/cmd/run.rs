@@ -94,12 +94,19 @@ pub fn run(args: Args) -> Result<()> {
             plane_len: h.image_len(),
         });
     }
+    // Truth is rendered in the head's rectified left view, the stereo service's disparity geometry,
+    // computed once from the calibration `sim calib` writes.
     let truth_head = match &args.truth_head {
-        Some(name) => Some(
-            sim.world
+        Some(name) => {
+            let index = sim
+                .world
                 .head_index(name)
-                .with_context(|| format!("no head `{name}` for --truth-head"))?,
-        ),
+                .with_context(|| format!("no head `{name}` for --truth-head"))?;
+            let view = sim.world.heads[index]
+                .rectified()
+                .with_context(|| format!("rectified view of head `{name}`"))?;
+            Some((index, view))
+        }
         None => None,
     };
     let duration = args.duration.unwrap_or(sim.world.duration);
@@ -229,12 +236,12 @@ pub fn run(args: Args) -> Result<()> {
             &source,
         );
         truth_out.publish(&truth_msg)?;
-        if let Some(index) = truth_head {
-            let h = sim.world.heads[index].clone();
-            let n = h.pixel_count();
+        if let Some((index, view)) = &truth_head {
+            let index = *index;
+            let n = view.width * view.height;
             disparity.resize(n, 0.0);
             labels.resize(n, 0);
-            sim.render_truth(index, &mut disparity, &mut labels)?;
+            sim.render_truth_view(index, view, &mut disparity, &mut labels)?;
             let mut sample = truth_image.loan_slice(2 * n)?;
             let (d, l) = sample.payload_mut().split_at_mut(n);
             d.copy_from_slice(&disparity);
@@ -244,9 +251,9 @@ pub fn run(args: Args) -> Result<()> {
             }
             *sample.user_header_mut() = TruthImageHeader {
                 hdr: Header::new(truth_image.next_seq(), stamp, &source),
-                head: messages::Name::new(&h.name),
-                width: h.width,
-                height: h.height,
+                head: messages::Name::new(&sim.world.heads[index].name),
+                width: view.width as u32,
+                height: view.height as u32,
             };
             truth_image.send(sample)?;
         }

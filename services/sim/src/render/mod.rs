@@ -13,6 +13,7 @@ mod skycache;
 use crate::camera::{Camera, Encoding, StereoHead};
 use crate::math::Pose;
 use crate::noise::{hash32, unit};
+use crate::rectify::RectifiedView;
 use crate::world::{Label, World};
 use rayon::prelude::*;
 use scene::{Ray, Scene};
@@ -27,6 +28,11 @@ pub enum RenderError {
         head: String,
         got: usize,
         expected: usize,
+    },
+    #[error("head `{head}`: {source}")]
+    Rectify {
+        head: String,
+        source: crate::rectify::RectifyError,
     },
 }
 
@@ -75,22 +81,45 @@ impl Renderer {
         Ok(())
     }
 
-    /// Ground truth for the left image of `head`: disparity `f * B / Z` in pixels (0 for sky, which
-    /// is at infinity) and a [`Label`] per pixel. Water pixels carry the water surface's own
-    /// disparity and label, not those of what it reflects.
+    /// Renders what camera `cam` (of `head`, for the noise and encoding) sees at time `t`; `out`
+    /// holds `cam.width * cam.height * channels` bytes. Used to look through the rectified view.
+    pub fn render_camera(
+        &mut self,
+        world: &World,
+        head: &StereoHead,
+        cam: &Camera,
+        t: f64,
+        out: &mut [u8],
+    ) -> Result<(), RenderError> {
+        let n = cam.width as usize * cam.height as usize * head.encoding.channels();
+        check_len("image", head, out.len(), n)?;
+        self.prepare(world, t);
+        let tracer = Tracer::new(world, &self.scene, &self.sky, t as f32, cam.pixel_angle());
+        render_image(&tracer, cam, head, t, out);
+        Ok(())
+    }
+
+    /// Ground truth in the rectified left view `view` of `head` (see [`StereoHead::rectified`];
+    /// for an untoed, undistorted head it is the left image itself): disparity `f * B / Z` in
+    /// pixels (0 for sky, which is at infinity) and a [`Label`] per pixel, `view.width *
+    /// view.height` each. Water pixels carry the water surface's own disparity and label, not
+    /// those of what it reflects.
+    #[allow(clippy::too_many_arguments)]
     pub fn render_truth(
         &mut self,
         world: &World,
         head: &StereoHead,
+        view: &RectifiedView,
         body: &Pose,
         t: f64,
         disparity: &mut [f32],
         labels: &mut [u8],
     ) -> Result<(), RenderError> {
-        check_len("disparity", head, disparity.len(), head.pixel_count())?;
-        check_len("label", head, labels.len(), head.pixel_count())?;
+        let n = view.width * view.height;
+        check_len("disparity", head, disparity.len(), n)?;
+        check_len("label", head, labels.len(), n)?;
         self.prepare(world, t);
-        let [cam, _] = head.cameras(body);
+        let cam = head.rectified_camera(view, body);
         let tracer = Tracer::new(world, &self.scene, &self.sky, t as f32, cam.pixel_angle());
         let w = cam.width as usize;
         let fb = cam.f * cam.baseline;
