@@ -47,6 +47,13 @@ pub struct Args {
     head_scale: f64,
 }
 
+/// A frame being published: INS stepped, heads rendered one per pass.
+struct Frame {
+    stamp: u64,
+    begun: Instant,
+    next_head: usize,
+}
+
 struct HeadOut {
     index: usize,
     name: String,
@@ -139,6 +146,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut waiting_since = Instant::now();
     let started = Instant::now();
     let mut frame_count = 0u64;
+    let mut pending: Option<Frame> = None;
     tracing::info!(
         scenario = %sim.world.name,
         heads = ?names,
@@ -167,47 +175,60 @@ pub fn run(args: Args) -> Result<()> {
         if wake == Wake::Input(0) {
             return Ok(());
         }
-        // Is the next frame due?
-        if let (Some(l), Some(stamp)) = (lockstep.as_mut(), last_stamp) {
-            l.update(&heartbeats)?;
-            if !l.done(stamp) {
-                if waiting_since.elapsed() < Duration::from_millis(args.lockstep_timeout_ms) {
-                    return Ok(());
+        if pending.is_none() {
+            // Is the next frame due?
+            if let (Some(l), Some(stamp)) = (lockstep.as_mut(), last_stamp) {
+                l.update(&heartbeats)?;
+                if !l.done(stamp) {
+                    if waiting_since.elapsed() < Duration::from_millis(args.lockstep_timeout_ms) {
+                        return Ok(());
+                    }
+                    tracing::warn!(stamp, missing = ?l.missing(stamp), "lock-step timeout, going on");
+                    l.timeouts += 1;
                 }
-                tracing::warn!(stamp, missing = ?l.missing(stamp), "lock-step timeout, going on");
-                l.timeouts += 1;
             }
-        }
-        if args.realtime && started.elapsed().as_secs_f64() < sim.time() {
-            return Ok(());
-        }
-        if sim.time() + 1e-9 >= duration {
-            tracing::info!(frames = frame_count, "scenario time is up");
-            shutdown.request();
-            return Ok(());
-        }
+            if args.realtime && started.elapsed().as_secs_f64() < sim.time() {
+                return Ok(());
+            }
+            if sim.time() + 1e-9 >= duration {
+                tracing::info!(frames = frame_count, "scenario time is up");
+                shutdown.request();
+                return Ok(());
+            }
 
-        let begun = Instant::now();
-        for _ in 0..ins_steps {
-            sim.step(command, ins_dt);
-            let s = sim.ins_sample();
-            let state = InsState {
-                hdr: Header::new(ins.next_seq(), stamp_of(s.time), &source),
-                origin: messages::GeodeticOrigin::default(),
-                pose: messages::Pose {
-                    position: s.position,
-                    roll: s.rpy[0],
-                    pitch: s.rpy[1],
-                    yaw: s.rpy[2],
-                },
-                velocity: s.velocity,
-                angular_rate: s.rates,
-                position_sigma: sim.world.ins.position_sigma,
-            };
-            ins.publish(&state)?;
+            let begun = Instant::now();
+            for _ in 0..ins_steps {
+                sim.step(command, ins_dt);
+                let s = sim.ins_sample();
+                let state = InsState {
+                    hdr: Header::new(ins.next_seq(), stamp_of(s.time), &source),
+                    origin: messages::GeodeticOrigin::default(),
+                    pose: messages::Pose {
+                        position: s.position,
+                        roll: s.rpy[0],
+                        pitch: s.rpy[1],
+                        yaw: s.rpy[2],
+                    },
+                    velocity: s.velocity,
+                    angular_rate: s.rates,
+                    position_sigma: sim.world.ins.position_sigma,
+                };
+                ins.publish(&state)?;
+            }
+            pending = Some(Frame {
+                stamp: stamp_of(sim.time()),
+                begun,
+                next_head: 0,
+            });
         }
-        let stamp = stamp_of(sim.time());
-        for head in &heads {
+        // One head per pass (then the truth), so the heartbeat keeps flowing while a large frame
+        // renders on a busy machine.
+        let Some(frame) = pending.as_mut() else {
+            return Ok(());
+        };
+        let stamp = frame.stamp;
+        if let Some(head) = heads.get(frame.next_head) {
+            frame.next_head += 1;
             let mut sample = frames.loan_slice(2 * head.plane_len)?;
             let (left, right) = sample.payload_mut().split_at_mut(head.plane_len);
             sim.render_head(head.index, left, right)?;
@@ -225,6 +246,7 @@ pub fn run(args: Args) -> Result<()> {
                 encoding: head.encoding,
             };
             frames.send(sample)?;
+            return Ok(());
         }
         sim.truth_into(&mut truth);
         fill_truth(
@@ -257,6 +279,8 @@ pub fn run(args: Args) -> Result<()> {
             };
             truth_image.send(sample)?;
         }
+        let begun = frame.begun;
+        pending = None;
         health.record(stamp, begun);
         frame_count += 1;
         last_stamp = Some(stamp);
