@@ -47,7 +47,7 @@ pub struct Args {
     head_scale: f64,
 }
 
-/// A frame being published: INS stepped, heads rendered one per pass.
+/// A frame in the making: INS stepped, heads rendered one per pass, published together.
 struct Frame {
     stamp: u64,
     begun: Instant,
@@ -140,6 +140,7 @@ pub fn run(args: Args) -> Result<()> {
         throttle: sim.state().throttle,
     };
     let mut truth = WorldTruth::default();
+    let mut pairs: Vec<Vec<u8>> = heads.iter().map(|h| vec![0; 2 * h.plane_len]).collect();
     let mut truth_msg = Box::<GroundTruth>::default();
     let (mut disparity, mut labels) = (Vec::new(), Vec::new());
     let mut last_stamp: Option<u64> = None;
@@ -221,17 +222,23 @@ pub fn run(args: Args) -> Result<()> {
                 next_head: 0,
             });
         }
-        // One head per pass (then the truth), so the heartbeat keeps flowing while a large frame
-        // renders on a busy machine.
+        // One head rendered per pass, so the heartbeat keeps flowing while a large frame renders on
+        // a busy machine; then every head is published at once, as from cameras triggered together
+        // (rendering straight into loaned samples would hold one loan per head; the copy costs
+        // ~1 ms a head).
         let Some(frame) = pending.as_mut() else {
             return Ok(());
         };
         let stamp = frame.stamp;
         if let Some(head) = heads.get(frame.next_head) {
-            frame.next_head += 1;
-            let mut sample = frames.loan_slice(2 * head.plane_len)?;
-            let (left, right) = sample.payload_mut().split_at_mut(head.plane_len);
+            let (left, right) = pairs[frame.next_head].split_at_mut(head.plane_len);
             sim.render_head(head.index, left, right)?;
+            frame.next_head += 1;
+            return Ok(());
+        }
+        for (head, pair) in heads.iter().zip(&pairs) {
+            let mut sample = frames.loan_slice(pair.len())?;
+            sample.payload_mut().copy_from_slice(pair);
             let bpp = if head.encoding == messages::PixelEncoding::Rgb8 as u32 {
                 3
             } else {
@@ -246,7 +253,6 @@ pub fn run(args: Args) -> Result<()> {
                 encoding: head.encoding,
             };
             frames.send(sample)?;
-            return Ok(());
         }
         sim.truth_into(&mut truth);
         fill_truth(
