@@ -154,6 +154,16 @@ pub enum ConfigError {
     Idle,
 }
 
+/// Whether topic `name` has a Foxglove view (is shown live).
+pub fn has_view(name: &str) -> bool {
+    fn schemas<P: ?Sized, H: views::View<P>>(
+        _: &messages::Topic<P, H>,
+    ) -> &'static [views::Schema] {
+        H::schemas()
+    }
+    messages::with_topic!(name, t => !schemas(t).is_empty()).unwrap_or(false)
+}
+
 fn known(name: &str) -> bool {
     topics::ALL.iter().any(|t| t.name == name)
 }
@@ -284,6 +294,15 @@ mod tests {
     }
 
     #[test]
+    fn demo_set_config_is_valid() {
+        let text = include_str!("../../../launch/sets/bridge.toml");
+        let c = parse(text).unwrap();
+        c.validate(has_view).unwrap();
+        assert!(c.live_topics(has_view).contains(&topics::WORLD_MAP.name));
+        assert!(has_view(topics::HEARTBEAT.name) && !has_view(topics::DISPARITY.name));
+    }
+
+    #[test]
     fn zenoh_section() {
         let c = parse(
             "listen = \"\"\n[zenoh]\nkey_prefix = \"boat1/\"\npublish = [\"usv/sensors/ins\"]\nsubscribe = [\"usv/mapper/world_map\"]\n",
@@ -295,8 +314,9 @@ mod tests {
         assert_eq!(z.mode, "peer");
         assert!(!z.scouting);
         assert_eq!(z.key("usv/sensors/ins"), "boat1/usv/sensors/ins");
-        let c = parse("[zenoh]\npublish = [\"usv/sensors/ins\"]\nsubscribe = [\"usv/sensors/ins\"]\n")
-            .unwrap();
+        let c =
+            parse("[zenoh]\npublish = [\"usv/sensors/ins\"]\nsubscribe = [\"usv/sensors/ins\"]\n")
+                .unwrap();
         assert!(matches!(c.validate(views), Err(ConfigError::ZenohLoop(_))));
         let c = parse("[zenoh]\nmode = \"router\"\npublish = [\"usv/sensors/ins\"]").unwrap();
         assert!(matches!(c.validate(views), Err(ConfigError::ZenohMode(_))));

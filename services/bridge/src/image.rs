@@ -41,7 +41,11 @@ pub enum ImageError {
     #[error("stereo frame payload has {got} bytes, its header says {want}")]
     Size { got: usize, want: usize },
     #[error("stereo frame of {width}x{height} with stride {stride} is inconsistent")]
-    Geometry { width: u32, height: u32, stride: u32 },
+    Geometry {
+        width: u32,
+        height: u32,
+        stride: u32,
+    },
 }
 
 /// Checks a frame before it is shown: the views crate would silently skip it.
@@ -163,7 +167,10 @@ mod tests {
             Err(ImageError::Size { got: 15, want: 16 })
         );
         let h = frame(4, 2, PixelEncoding::Rgb8, 4);
-        assert!(matches!(check(&h, &[0; 16]), Err(ImageError::Geometry { .. })));
+        assert!(matches!(
+            check(&h, &[0; 16]),
+            Err(ImageError::Geometry { .. })
+        ));
         let mut h = frame(4, 2, PixelEncoding::Mono8, 4);
         h.encoding = 7;
         assert_eq!(check(&h, &[0; 16]), Err(ImageError::Encoding(7)));

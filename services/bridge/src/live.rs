@@ -157,11 +157,6 @@ impl Live<[f32]> for DisparityHeader {}
 impl Live<[f32]> for TruthImageHeader {}
 impl Live<[u8]> for WaterMaskHeader {}
 
-/// The Foxglove schemas of a topic (none: not shown live).
-pub fn schemas<P: ?Sized, H: View<P>>(_: &Topic<P, H>) -> &'static [Schema] {
-    H::schemas()
-}
-
 /// One subscribed topic.
 pub trait Tap {
     fn input(&self) -> Input<'_>;

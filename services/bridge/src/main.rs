@@ -18,6 +18,7 @@ mod server;
 mod zenoh_link;
 
 use anyhow::Context;
+use bridge::config::has_view;
 use bridge::{Config, Hub};
 use runtime::{Input, Service, Wake};
 use std::path::{Path, PathBuf};
@@ -58,10 +59,6 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
-}
-
-fn has_view(name: &str) -> bool {
-    messages::with_topic!(name, t => !live::schemas(t).is_empty()).unwrap_or(false)
 }
 
 /// Tick of the wait loop: drop reports, and polling the link's received messages.

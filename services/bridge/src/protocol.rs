@@ -172,7 +172,9 @@ mod tests {
     #[test]
     fn requests_parse_and_bad_ones_are_errors() {
         assert_eq!(
-            parse_request(r#"{"op":"subscribe","subscriptions":[{"id":0,"channelId":3},{"id":1,"channelId":5}]}"#),
+            parse_request(
+                r#"{"op":"subscribe","subscriptions":[{"id":0,"channelId":3},{"id":1,"channelId":5}]}"#
+            ),
             Ok(Request::Subscribe(vec![(0, 3), (1, 5)]))
         );
         assert_eq!(
@@ -184,7 +186,10 @@ mod tests {
             Ok(Request::Unsupported("getParameters".into()))
         );
         assert!(parse_request("not json").is_err());
-        assert!(parse_request(r#"{"op":"subscribe","subscriptions":[{"id":-1,"channelId":3}]}"#).is_err());
+        assert!(
+            parse_request(r#"{"op":"subscribe","subscriptions":[{"id":-1,"channelId":3}]}"#)
+                .is_err()
+        );
     }
 
     #[test]
@@ -194,10 +199,7 @@ mod tests {
         write_data_prefix(&mut frame, 7, 1_234_567_890_123);
         assert_eq!(frame[0], 1);
         assert_eq!(&frame[1..5], &[7, 0, 0, 0]);
-        assert_eq!(
-            parse_data(&frame),
-            Some((7, 1_234_567_890_123, &b"{}"[..]))
-        );
+        assert_eq!(parse_data(&frame), Some((7, 1_234_567_890_123, &b"{}"[..])));
         assert_eq!(parse_data(&frame[..5]), None);
     }
 }

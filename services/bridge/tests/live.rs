@@ -44,7 +44,10 @@ async fn foxglove_client_sees_images_maps_and_pose() {
     let image_topic = "usv/sensors/stereo_frame/hh_left/image";
     let end = Instant::now() + Duration::from_secs(10);
     while !channels.contains_key(image_topic) {
-        assert!(Instant::now() < end, "image channel never advertised: {channels:?}");
+        assert!(
+            Instant::now() < end,
+            "image channel never advertised: {channels:?}"
+        );
         let m = json(&next(&mut ws, Duration::from_secs(10)).await);
         assert_eq!(m["op"], "advertise", "{m}");
         for c in m["channels"].as_array().unwrap() {
@@ -54,7 +57,10 @@ async fn foxglove_client_sees_images_maps_and_pose() {
             assert_eq!(schema["title"], c["schemaName"]);
             channels.insert(
                 c["topic"].as_str().unwrap().into(),
-                (c["id"].as_u64().unwrap(), c["schemaName"].as_str().unwrap().into()),
+                (
+                    c["id"].as_u64().unwrap(),
+                    c["schemaName"].as_str().unwrap().into(),
+                ),
             );
         }
     }
@@ -78,9 +84,11 @@ async fn foxglove_client_sees_images_maps_and_pose() {
         assert!(channels.contains_key(topic), "{topic} not advertised");
     }
     // Bad requests get a status answer and do not break the session.
-    ws.send(Message::text(r#"{"op":"subscribe","subscriptions":[{"id":1,"channelId":999}]}"#))
-        .await
-        .unwrap();
+    ws.send(Message::text(
+        r#"{"op":"subscribe","subscriptions":[{"id":1,"channelId":999}]}"#,
+    ))
+    .await
+    .unwrap();
     ws.send(Message::text(
         json!({"op": "subscribe", "subscriptions": subscriptions}).to_string(),
     ))
@@ -111,8 +119,9 @@ async fn foxglove_client_sees_images_maps_and_pose() {
     }
     let elapsed = started.elapsed().as_secs_f64();
     assert!(
-        statuses.iter().any(|s| s["op"] == "status"
-            && s["message"].as_str().unwrap().contains("999")),
+        statuses
+            .iter()
+            .any(|s| s["op"] == "status" && s["message"].as_str().unwrap().contains("999")),
         "{statuses:?}"
     );
 
@@ -142,22 +151,43 @@ async fn foxglove_client_sees_images_maps_and_pose() {
     let cells = decode(&grid["data"]);
     assert_eq!(cells.len(), GRID.cell_count() * 8);
     let c = cell(1234);
-    assert_eq!(&cells[1234 * 8..1234 * 8 + 4], &[c.hazard, c.cost, c.water, c.observed]);
+    assert_eq!(
+        &cells[1234 * 8..1234 * 8 + 4],
+        &[c.hazard, c.cost, c.water, c.observed]
+    );
     // Position: 50 m north of the origin.
     let fix = &seen[&12][0];
     let lat = fix["latitude"].as_f64().unwrap();
-    assert!((lat - (59.0 + (50.0f64 / 6_371_000.0).to_degrees())).abs() < 1e-9, "{lat}");
+    assert!(
+        (lat - (59.0 + (50.0f64 / 6_371_000.0).to_degrees())).abs() < 1e-9,
+        "{lat}"
+    );
 
     // Rate limits: images at most 4 Hz, maps 2 Hz, INS (20 Hz, unlimited) passes whole.
     let rate = |sub: u32| seen.get(&sub).map_or(0, |v| v.len()) as f64 / elapsed;
-    assert!(rate(10) <= 4.0 * 1.25 + 1.0 / elapsed, "image rate {}", rate(10));
-    assert!(rate(11) <= 2.0 * 1.25 + 1.0 / elapsed, "map rate {}", rate(11));
-    assert!(rate(12) > rate(10), "INS {} vs image {}", rate(12), rate(10));
+    assert!(
+        rate(10) <= 4.0 * 1.25 + 1.0 / elapsed,
+        "image rate {}",
+        rate(10)
+    );
+    assert!(
+        rate(11) <= 2.0 * 1.25 + 1.0 / elapsed,
+        "map rate {}",
+        rate(11)
+    );
+    assert!(
+        rate(12) > rate(10),
+        "INS {} vs image {}",
+        rate(12),
+        rate(10)
+    );
 
     // After unsubscribing, images stop (whatever was in flight may still arrive).
-    ws.send(Message::text(r#"{"op":"unsubscribe","subscriptionIds":[10]}"#))
-        .await
-        .unwrap();
+    ws.send(Message::text(
+        r#"{"op":"unsubscribe","subscriptionIds":[10]}"#,
+    ))
+    .await
+    .unwrap();
     tokio::time::sleep(Duration::from_millis(300)).await;
     let quiet = Instant::now() + Duration::from_millis(800);
     while let Ok(Some(Ok(m))) = tokio::time::timeout(

@@ -150,9 +150,7 @@ impl Source {
             let mut next = Instant::now();
             while !s.load(Ordering::Relaxed) {
                 let stamp = runtime::clock::monotonic_ns();
-                let mut sample = frame_pub
-                    .loan_slice(2 * (WIDTH * HEIGHT) as usize)
-                    .unwrap();
+                let mut sample = frame_pub.loan_slice(2 * (WIDTH * HEIGHT) as usize).unwrap();
                 *sample.user_header_mut() = StereoFrameHeader {
                     hdr: Header::new(frame_pub.next_seq(), stamp, "hh_left"),
                     head: "hh_left".into(),
