@@ -149,23 +149,24 @@ fn run(path: &Path) -> anyhow::Result<()> {
                 }
                 // Once per heartbeat period, not per batch: each heartbeat is itself a sample this
                 // service may be subscribed to, and reporting per batch would feed back.
-                if last_tick.elapsed() >= TICK {
-                    last_tick = Instant::now();
-                    if handled_since_tick > 0 {
-                        health.record(0, started);
-                        handled_since_tick = 0;
-                    }
-                    let drops = hub.dropped();
-                    if drops > reported_drops {
-                        health.reject(
-                            0,
-                            &format!(
-                                "live view: {} messages dropped for slow clients ({drops} since start)",
-                                drops - reported_drops
-                            ),
-                        );
-                        reported_drops = drops;
-                    }
+                if last_tick.elapsed() < TICK {
+                    return Ok(());
+                }
+                last_tick = Instant::now();
+                if handled_since_tick > 0 {
+                    health.record(0, started);
+                    handled_since_tick = 0;
+                }
+                let drops = hub.dropped();
+                if drops > reported_drops {
+                    health.reject(
+                        0,
+                        &format!(
+                            "live view: {} messages dropped for slow clients ({drops} since start)",
+                            drops - reported_drops
+                        ),
+                    );
+                    reported_drops = drops;
                 }
             }
             _ => {}
