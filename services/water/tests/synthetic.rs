@@ -1,0 +1,272 @@
+//! Synthetic frames with known geometry: flat textured ground, sky above the horizon, a puddle that
+//! reflects the sky (and, in part, a tree), and a speck of sky colour.
+
+use messages::{water_cue, CameraModel, Pose};
+use water::{Frame, Image, WaterConfig, WaterDetector, WaterError};
+
+const W: usize = 512;
+const H: usize = 384;
+const GROUND: f64 = 1.5;
+
+struct Scene {
+    rgb: Vec<u8>,
+    disparity: Vec<f32>,
+    /// True puddle pixels.
+    puddle: Vec<bool>,
+    speck: usize,
+    camera: CameraModel,
+    vehicle: Pose,
+    puddle_center: [f64; 2],
+}
+
+fn hash(u: usize, v: usize) -> u32 {
+    let mut x = (u as u32).wrapping_mul(0x9E37_79B1) ^ (v as u32).wrapping_mul(0x85EB_CA77);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x2C1B_3C6D);
+    x ^= x >> 12;
+    x
+}
+
+fn scene() -> Scene {
+    let camera = CameraModel {
+        fx: 443.0,
+        fy: 443.0,
+        cx: 255.5,
+        cy: 191.5,
+        baseline_m: 0.5,
+        mount: Pose {
+            position: [0.5, 0.0, 2.0],
+            pitch: 10f64.to_radians(),
+            ..Pose::default()
+        },
+    };
+    let yaw: f64 = 0.3;
+    let vehicle = Pose {
+        position: [3.0, -2.0, GROUND],
+        yaw,
+        ..Pose::default()
+    };
+    // A puddle 12 m ahead, 2 m in radius; a speck 8 m ahead and 2.5 m to the left.
+    let ahead = |d: f64, left: f64| {
+        [
+            3.0 + d * yaw.cos() - left * yaw.sin(),
+            -2.0 + d * yaw.sin() + left * yaw.cos(),
+        ]
+    };
+    let pc = ahead(12.0, 0.0);
+    let sc = ahead(8.0, 2.5);
+    let geo = water::geometry::FrameGeometry::new(&camera, &vehicle);
+    let mut rgb = vec![0u8; 3 * W * H];
+    let mut disparity = vec![f32::NAN; W * H];
+    let mut puddle = vec![false; W * H];
+    let mut speck = 0;
+    for v in 0..H {
+        for u in 0..W {
+            let i = v * W + u;
+            let n = hash(u, v);
+            let px: [u8; 3] = match geo.intersect_plane(u as f64, v as f64, GROUND) {
+                None => {
+                    // Sky: a smooth gradient, no disparity.
+                    let t = (v as f32 / 150.0).min(1.0);
+                    let c = [150.0 + 20.0 * t, 175.0 + 10.0 * t, 215.0 + 5.0 * t];
+                    c.map(|x| x as u8)
+                }
+                Some(p) => {
+                    let ray = geo.ray(u as f64, v as f64);
+                    let depth = (p[0] - geo.origin[0]) / ray[0];
+                    let in_puddle = (p[0] - pc[0]).hypot(p[1] - pc[1]) < 2.0;
+                    let in_speck = (p[0] - sc[0]).abs() < 0.05 && (p[1] - sc[1]).abs() < 0.05;
+                    if in_puddle {
+                        puddle[i] = true;
+                        if (p[1] - pc[1]) * yaw.cos() - (p[0] - pc[0]) * yaw.sin() > 1.0 {
+                            // Left part reflects a tree trunk 22 m away: its mirror image is a
+                            // vertical line of range points below the ground, textured dark green.
+                            let t = 22.0 / ray[0].hypot(ray[1]);
+                            disparity[i] = (camera.fx * camera.baseline_m / t) as f32;
+                            let g = (n % 40) as u8;
+                            [30 + g / 2, 60 + g, 25 + g / 3]
+                        } else {
+                            // Sky reflection: dimmer sky colour, featureless, no disparity.
+                            [112 + (n % 2) as u8, 127, 152]
+                        }
+                    } else if in_speck {
+                        speck += 1;
+                        [112, 127, 152]
+                    } else {
+                        disparity[i] = (camera.fx * camera.baseline_m / depth) as f32;
+                        let g = (n % 60) as u8;
+                        [95 + g, 75 + g, 50 + g / 2]
+                    }
+                }
+            };
+            rgb[3 * i..3 * i + 3].copy_from_slice(&px);
+        }
+    }
+    Scene {
+        rgb,
+        disparity,
+        puddle,
+        speck,
+        camera,
+        vehicle,
+        puddle_center: pc,
+    }
+}
+
+fn frame(s: &Scene) -> Frame<'_> {
+    Frame {
+        width: W,
+        height: H,
+        image: Image::Rgb8(&s.rgb),
+        disparity: &s.disparity,
+        camera: &s.camera,
+        vehicle: &s.vehicle,
+    }
+}
+
+#[test]
+fn sky_reflecting_puddle_is_water_at_the_ground_elevation() {
+    let s = scene();
+    let mut det = WaterDetector::new(WaterConfig::default());
+    let d = det.process(&frame(&s)).unwrap();
+    assert_eq!(d.regions.len(), 1, "{:?}", d.regions);
+    let r = d.regions[0];
+    let truth = s.puddle.iter().filter(|&&p| p).count();
+    let hit = d
+        .mask
+        .iter()
+        .zip(&s.puddle)
+        .filter(|(m, &p)| p && **m & water_cue::WATER != 0)
+        .count();
+    let outside = d
+        .mask
+        .iter()
+        .zip(&s.puddle)
+        .filter(|(m, &p)| !p && **m & water_cue::WATER != 0)
+        .count();
+    assert!(hit as f64 > 0.9 * truth as f64, "{hit} of {truth}");
+    assert!((outside as f64) < 0.1 * truth as f64, "{outside} outside");
+    assert!(r.perimeter_samples > 50, "{r:?}");
+    assert!(
+        (r.elevation_m - GROUND).abs() < 0.03,
+        "elevation {}",
+        r.elevation_m
+    );
+    assert!((r.range_m - 12.0).abs() < 1.0, "range {}", r.range_m);
+    assert!(r.bearing_rad.abs() < 0.05, "bearing {}", r.bearing_rad);
+    let c = r.position;
+    assert!((c[0] - s.puddle_center[0]).hypot(c[1] - s.puddle_center[1]) < 1.0);
+    // All four cues contribute: the tree reflection gives reflection points below the ground.
+    assert!(r.cues.iter().all(|&n| n > 100), "cues {:?}", r.cues);
+
+    // The terrain map holds the puddle at its elevation, and flat ground is cheap.
+    let g = d.grid;
+    assert_eq!((g.width, g.height), (100, 100));
+    let (col, row) = g.cell_of(s.puddle_center[0], s.puddle_center[1]).unwrap();
+    let cell = d.map[(row * g.width + col) as usize];
+    assert_eq!(cell.water, 1);
+    assert!((cell.elevation_cm - 150).abs() <= 3, "{cell:?}");
+    let water_cells = d.map.iter().filter(|c| c.water == 1).count();
+    // A 2 m disc covers ~50 cells of 0.5 m; allow for the hidden far rim and edge cells.
+    assert!((30..=70).contains(&water_cells), "{water_cells}");
+    assert_eq!(r.map_cells as usize, water_cells);
+    let (col, row) = g
+        .cell_of(s.vehicle.position[0] + 6.0, s.vehicle.position[1] + 1.8)
+        .unwrap();
+    let ground = d.map[(row * g.width + col) as usize];
+    assert!(
+        ground.observed > 0 && ground.cost < 30 && ground.water == 0,
+        "{ground:?}"
+    );
+    assert!((ground.elevation_cm - 150).abs() <= 3);
+}
+
+#[test]
+fn sky_above_the_horizon_and_a_small_speck_are_rejected() {
+    let s = scene();
+    assert!(s.speck > 0 && s.speck < 20, "speck of {} px", s.speck);
+    let mut det = WaterDetector::new(WaterConfig::default());
+    let d = det.process(&frame(&s)).unwrap();
+    // The sky carries colour and texture cues, so it is a candidate region; the rule base rejects it.
+    let top = &d.mask[..W * 40];
+    assert!(top
+        .iter()
+        .all(|m| m & water_cue::COLOR != 0 && m & water_cue::TEXTURE != 0));
+    assert!(top.iter().all(|m| m & water_cue::WATER == 0));
+    assert!(d.candidates >= 3, "sky, puddle, speck: {}", d.candidates);
+    let speck_water = d
+        .mask
+        .iter()
+        .zip(&s.puddle)
+        .enumerate()
+        .filter(|(i, (m, &p))| !p && **m & water_cue::WATER != 0 && *i > W * 200)
+        .count();
+    assert_eq!(speck_water, 0);
+    // Without the size rule the speck (colour + zero disparity + smooth) would be water.
+    let mut cfg = WaterConfig::default();
+    cfg.rules.min_pixels = 1;
+    let mut det = WaterDetector::new(cfg);
+    let d = det.process(&frame(&s)).unwrap();
+    assert_eq!(d.regions.len(), 2, "{:?}", d.regions);
+}
+
+#[test]
+fn mismatched_sizes_and_bad_camera_are_typed_errors() {
+    let s = scene();
+    let mut det = WaterDetector::new(WaterConfig::default());
+    let mut f = frame(&s);
+    f.disparity = &s.disparity[..W * H - 1];
+    assert!(matches!(
+        det.process(&f),
+        Err(WaterError::SizeMismatch {
+            what: "disparity",
+            ..
+        })
+    ));
+    let mut f = frame(&s);
+    f.image = Image::Mono8(&s.rgb);
+    assert!(matches!(
+        det.process(&f),
+        Err(WaterError::SizeMismatch { .. })
+    ));
+    let mut cam = s.camera;
+    cam.baseline_m = 0.0;
+    let mut f = frame(&s);
+    f.camera = &cam;
+    assert!(matches!(det.process(&f), Err(WaterError::Camera(_))));
+    let upside = Pose {
+        roll: std::f64::consts::PI,
+        ..s.vehicle
+    };
+    let mut f = frame(&s);
+    f.vehicle = &upside;
+    assert!(matches!(det.process(&f), Err(WaterError::Pose(_))));
+    // The detector keeps working after bad frames.
+    assert_eq!(det.process(&frame(&s)).unwrap().regions.len(), 1);
+}
+
+#[test]
+fn output_is_deterministic_and_mono_has_no_colour_cue() {
+    let s = scene();
+    let mut det = WaterDetector::new(WaterConfig::default());
+    let a = {
+        let d = det.process(&frame(&s)).unwrap();
+        (d.mask.to_vec(), d.map.to_vec(), d.regions.to_vec())
+    };
+    let d = det.process(&frame(&s)).unwrap();
+    assert_eq!(a.0, d.mask);
+    assert_eq!(a.1, d.map);
+    assert_eq!(a.2, d.regions);
+
+    let gray: Vec<u8> = s
+        .rgb
+        .chunks_exact(3)
+        .map(|p| water::cues::luma(p[0], p[1], p[2]))
+        .collect();
+    let mut f = frame(&s);
+    f.image = Image::Mono8(&gray);
+    let d = det.process(&f).unwrap();
+    assert!(d.mask.iter().all(|m| m & water_cue::COLOR == 0));
+    // Reflections alone still make the tree-reflecting part of the puddle water.
+    assert!(d.regions.iter().all(|r| r.cues[2] > 0));
+}
