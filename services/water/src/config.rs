@@ -14,6 +14,11 @@ pub struct WaterConfig {
     /// Radius (px) of the closing that joins close regions of one cue before fusion (section 2,
     /// figure 4). 0 disables it.
     pub join_radius_px: usize,
+    /// Whether texture and zero disparity alone form candidate regions. Off: regions grow from the
+    /// water-specific cues (colour, reflection) and the other two only count as support inside them,
+    /// because smooth, poorly matched dry ground (a dirt trail, short grass) fires both widely and
+    /// would merge everything below the horizon into one region.
+    pub weak_cues_form_regions: bool,
     pub rules: RuleParams,
     pub ground: GroundParams,
     pub map: MapParams,
@@ -27,6 +32,7 @@ impl Default for WaterConfig {
             zero_disparity: ZeroDisparityParams::default(),
             reflection: ReflectionParams::default(),
             join_radius_px: 3,
+            weak_cues_form_regions: false,
             rules: RuleParams::default(),
             ground: GroundParams::default(),
             map: MapParams::default(),
@@ -154,15 +160,15 @@ pub struct RuleParams {
     pub max_above_horizon: f32,
     /// A stereo point this far above the ground (m) is "above the ground"...
     pub above_ground_m: f32,
-    /// ...and a region with more than this share of its range points above the ground is rejected.
+    /// ...and a region with more than this share of its perimeter's range points above the ground
+    /// is rejected (it lies on something standing up, not on the ground).
     pub max_above_ground: f32,
     /// A cue is present in a region when it covers at least this share of it.
     pub min_cue_share: f32,
-    /// Valid combinations need at least this many cues present.
+    /// Valid combinations: colour covering this share with at least `min_cues` cues present...
     pub min_cues: usize,
-    /// ...and one of the water-specific cues: colour covering this share...
     pub min_color_share: f32,
-    /// ...or stereo reflections covering this share.
+    /// ...or stereo reflections covering this share together with zero disparity.
     pub min_reflection_share: f32,
 }
 

@@ -85,6 +85,8 @@ pub struct Detection<'a> {
     pub regions: &'a [WaterRegion],
     /// Candidate regions the rule base looked at.
     pub candidates: usize,
+    /// Rejected candidates by reason: too small, above the horizon, above the ground, invalid cues.
+    pub rejected: [u32; 4],
     pub map: &'a [MapCell],
     pub grid: GridGeometry,
     pub sky: SkyReference,
@@ -382,35 +384,33 @@ impl WaterDetector {
             cfg.join_radius_px,
             bits,
         );
-        let n = regions::label(&self.joined, w, h, &mut self.labels, &mut self.parent);
+        let seeds = if cfg.weak_cues_form_regions {
+            bits
+        } else {
+            water_cue::COLOR | water_cue::REFLECTION
+        };
+        // Region membership in the tmp buffer: the joined seed cues.
+        self.tmp
+            .par_iter_mut()
+            .zip(&self.joined)
+            .for_each(|(t, &j)| *t = j & seeds);
+        let n = regions::label(&self.tmp, w, h, &mut self.labels, &mut self.parent);
 
-        // Rule-base fusion.
+        // Region statistics for the rule base.
         self.stats.clear();
         self.stats.resize(n + 1, RegionStats::default());
         for v in 0..h {
             for u in 0..w {
                 let i = v * w + u;
                 let l = self.labels[i] as usize;
-                if l == 0 {
-                    continue;
+                if l != 0 {
+                    self.stats[l].add(u, v, self.joined[i], (v as f32) < self.horizon[u]);
                 }
-                let a = self.aux[i];
-                self.stats[l].add(
-                    u,
-                    v,
-                    self.joined[i],
-                    (v as f32) < self.horizon[u],
-                    a & RANGE != 0,
-                    a & ABOVE_GROUND != 0,
-                );
             }
         }
-        self.verdicts.clear();
-        self.verdicts
-            .extend(self.stats.iter().map(|s| regions::judge(s, &cfg.rules)));
-        self.verdicts[0] = Verdict::TooSmall;
-
-        // Water elevation: mean ground elevation around each accepted region's perimeter (section 3).
+        // Around each region's perimeter: range points above the ground (a region sitting on an
+        // elevated object is not water), and ground samples for the water elevation (section 3).
+        // Points inside a region are not used: stereo on water is unreliable.
         self.perimeter.clear();
         self.perimeter.resize(n + 1, (0.0, 0));
         let off = cfg.ground.perimeter_offset_px.max(1) as isize;
@@ -419,7 +419,7 @@ impl WaterDetector {
             for u in 0..w as isize {
                 let i = (v * w as isize + u) as usize;
                 let l = self.labels[i] as usize;
-                if l == 0 || self.verdicts[l] != Verdict::Water {
+                if l == 0 {
                     continue;
                 }
                 for (du, dv) in [(-off, 0), (off, 0), (0, -off), (0, off)] {
@@ -428,8 +428,14 @@ impl WaterDetector {
                         continue;
                     }
                     let j = (vv * w as isize + uu) as usize;
+                    if self.labels[j] as usize == l || self.aux[j] & RANGE == 0 {
+                        continue;
+                    }
+                    let s = &mut self.stats[l];
+                    s.range_points += 1;
+                    s.above_ground += (self.aux[j] & ABOVE_GROUND != 0) as u32;
                     let c = self.cell[j];
-                    if self.labels[j] as usize == l || c == NO_CELL || self.aux[j] & RANGE == 0 {
+                    if c == NO_CELL {
                         continue;
                     }
                     let c = c as usize;
@@ -442,6 +448,11 @@ impl WaterDetector {
                 }
             }
         }
+        // Rule-base fusion.
+        self.verdicts.clear();
+        self.verdicts
+            .extend(self.stats.iter().map(|s| regions::judge(s, &cfg.rules)));
+        self.verdicts[0] = Verdict::TooSmall;
         let nearest = self.ground.nearest_ground().unwrap_or(fallback) as f64;
 
         // Terrain map, then water placed on it at each region's elevation.
@@ -515,11 +526,22 @@ impl WaterDetector {
                 .rem_euclid(std::f64::consts::TAU)
                 - std::f64::consts::PI;
         }
+        let mut rejected = [0u32; 4];
+        for v in &self.verdicts[1..] {
+            match v {
+                Verdict::Water => {}
+                Verdict::TooSmall => rejected[0] += 1,
+                Verdict::AboveHorizon => rejected[1] += 1,
+                Verdict::AboveGround => rejected[2] += 1,
+                Verdict::InvalidCues => rejected[3] += 1,
+            }
+        }
         let cu = (w / 2).min(w - 1);
         Ok(Detection {
             mask: &self.mask,
             regions: &self.regions,
             candidates: n,
+            rejected,
             map: &self.map,
             grid: map::geometry(&grid),
             sky,

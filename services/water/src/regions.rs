@@ -92,7 +92,7 @@ pub struct RegionStats {
     /// Pixels with each joined cue: colour, texture, reflection, zero disparity.
     pub cues: [u32; 4],
     pub above_horizon: u32,
-    /// Pixels with a stereo point that is not a reflection, and those of them above the ground.
+    /// Perimeter samples with a stereo point that is not a reflection, and those above the ground.
     pub range_points: u32,
     pub above_ground: u32,
     /// Inclusive bounding box: u0, v0, u1, v1.
@@ -108,8 +108,6 @@ impl RegionStats {
         v: usize,
         cues: u8,
         above_horizon: bool,
-        range: bool,
-        above: bool,
     ) {
         if self.pixels == 0 {
             self.bbox = [u as u32, v as u32, u as u32, v as u32];
@@ -124,8 +122,6 @@ impl RegionStats {
             self.cues[k] += (cues & bit != 0) as u32;
         }
         self.above_horizon += above_horizon as u32;
-        self.range_points += range as u32;
-        self.above_ground += above as u32;
         self.sum_u += u as u64;
         self.sum_v += v as u64;
     }
@@ -161,10 +157,13 @@ pub fn judge(s: &RegionStats, p: &RuleParams) -> Verdict {
     if s.range_points > 0 && s.above_ground as f32 > p.max_above_ground * s.range_points as f32 {
         return Verdict::AboveGround;
     }
+    // Valid combinations: colour (sky reflection) with at least one more cue, or stereo reflections
+    // with zero disparity next to them (reflections of far things); texture alone never decides.
     let share = s.cues.map(|c| c as f32 / n);
     let present = share.iter().filter(|&&f| f >= p.min_cue_share).count();
-    let specific = share[0] >= p.min_color_share || share[2] >= p.min_reflection_share;
-    if present < p.min_cues || !specific {
+    let color_led = share[0] >= p.min_color_share && present >= p.min_cues;
+    let reflection_led = share[2] >= p.min_reflection_share && share[3] >= p.min_cue_share;
+    if !(color_led || reflection_led) {
         return Verdict::InvalidCues;
     }
     Verdict::Water

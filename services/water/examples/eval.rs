@@ -1,0 +1,261 @@
+//! Water detection against simulator truth: renders a scenario's colour head, matches the pair with
+//! the stereo library, runs the detector, and prints the detection rate per range bin and the share
+//! of frames with a false water region. Optionally writes figure-2 style PNGs.
+//!
+//! `cargo run --release -p water --example eval -- services/sim/scenarios/trail_puddles_headon.toml --frames 30`
+
+mod common;
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use messages::{truth_class, water_cue};
+use std::path::PathBuf;
+use water::eval::{assign_bodies, score_frame, EvalParams, RangeTable};
+use water::{Frame, Image, WaterConfig, WaterDetector};
+
+#[derive(Parser)]
+struct Args {
+    /// Scenario files (TOML); each is evaluated and the totals are printed at the end.
+    #[arg(required = true)]
+    scenarios: Vec<PathBuf>,
+    #[arg(long, default_value = "color")]
+    head: String,
+    /// Frames per scenario.
+    #[arg(long, default_value_t = 30)]
+    frames: usize,
+    /// Scenario time of the first frame and between frames (s).
+    #[arg(long, default_value_t = 0.0)]
+    start: f64,
+    #[arg(long, default_value_t = 0.5)]
+    step: f64,
+    /// Downscale factor from the rendered size (2: 1024x768 -> 512x384, the paper's size).
+    #[arg(long, default_value_t = 2)]
+    scale: usize,
+    #[arg(long, default_value_t = 96)]
+    num_disparities: usize,
+    /// Write a figure for these frame indices (per scenario) into --png-dir.
+    #[arg(long, value_delimiter = ',')]
+    png_frames: Vec<usize>,
+    #[arg(long, default_value = "docs/water")]
+    png_dir: PathBuf,
+    /// Print each frame's regions and bodies.
+    #[arg(long)]
+    verbose: bool,
+    /// Print cue rates per truth class.
+    #[arg(long)]
+    stats: bool,
+}
+
+const EDGES: [f64; 6] = [5.0, 7.0, 10.0, 15.0, 20.0, 30.0];
+const CLASSES: [u8; 5] = [
+    truth_class::SKY,
+    truth_class::TRAIL,
+    truth_class::TERRAIN,
+    truth_class::VEGETATION,
+    truth_class::PUDDLE,
+];
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    let mut total = RangeTable::new(&EDGES);
+    let (mut frames_total, mut false_total) = (0usize, 0usize);
+    for scenario in &args.scenarios {
+        let mut src = common::SimStereo::new(scenario, &args.head, args.scale, args.num_disparities)?;
+        let mut cfg = WaterConfig::default();
+        cfg.zero_disparity.left_margin_px = src.num_disparities;
+        let mut det = WaterDetector::new(cfg);
+        let mut table = RangeTable::new(&EDGES);
+        let mut false_frames = 0usize;
+        let mut class_cues = [[0u64; 6]; 5];
+        let (mut of, mut ranges) = (Vec::new(), Vec::new());
+        let name = scenario.file_stem().unwrap_or_default().to_string_lossy().to_string();
+        let mut times = Vec::new();
+        for k in 0..args.frames {
+            let t = args.start + k as f64 * args.step;
+            src.advance_to(t);
+            src.frame(true)?;
+            let vehicle = src.vehicle();
+            let bodies = src.bodies();
+            let started = std::time::Instant::now();
+            let d = det.process(&Frame {
+                width: src.width,
+                height: src.height,
+                image: Image::Rgb8(&src.rgb),
+                disparity: &src.disparity,
+                camera: &src.camera,
+                vehicle: &vehicle,
+            })?;
+            times.push(started.elapsed().as_secs_f64() * 1e3);
+            let accepted: Vec<(u32, u32)> = d.regions.iter().map(|r| (r.label, r.pixels)).collect();
+            let regions = d.regions.to_vec();
+            let rejected = d.rejected;
+            let mask = d.mask.to_vec();
+            assign_bodies(
+                src.width,
+                &src.labels,
+                &src.truth_disparity,
+                &src.camera,
+                &vehicle,
+                &bodies,
+                &mut of,
+                &mut ranges,
+            );
+            let score = score_frame(
+                &of,
+                &ranges,
+                &bodies,
+                &mask,
+                det.region_labels(),
+                &accepted,
+                &EvalParams::default(),
+            );
+            for b in &score.bodies {
+                table.add(b);
+                total.add(b);
+            }
+            false_frames += score.has_false_region() as usize;
+            if args.stats {
+                for (&l, &m) in src.labels.iter().zip(&mask) {
+                    if let Some(c) = CLASSES.iter().position(|&c| c == l) {
+                        let s = &mut class_cues[c];
+                        s[0] += 1;
+                        for (b, bit) in water::regions::CUE_BITS.iter().enumerate() {
+                            s[1 + b] += (m & bit != 0) as u64;
+                        }
+                        s[5] += (m & water_cue::WATER != 0) as u64;
+                    }
+                }
+            }
+            if args.verbose {
+                let bodies: Vec<String> = score
+                    .bodies
+                    .iter()
+                    .map(|b| {
+                        format!(
+                            "#{} {:.1}m e={:.2} {}/{}{}",
+                            b.id,
+                            b.range_m,
+                            bodies[b.id as usize].elevation_m,
+                            b.water_pixels,
+                            b.truth_pixels,
+                            if b.detected { "" } else { " MISS" }
+                        )
+                    })
+                    .collect();
+                let regs: Vec<String> = regions
+                    .iter()
+                    .zip(&score.regions)
+                    .map(|(r, s)| {
+                        format!(
+                            "{}px e={:.2}({}) r={:.1}m cues={:?} truth={:.0}%{}",
+                            r.pixels,
+                            r.elevation_m,
+                            r.perimeter_samples,
+                            r.range_m,
+                            r.cues,
+                            100.0 * s.truth_share,
+                            if s.is_false { " FALSE" } else { "" }
+                        )
+                    })
+                    .collect();
+                println!(
+                    "{name} t={t:.1} x={:.1} bodies [{}] regions [{}] rejected {:?}",
+                    vehicle.position[0],
+                    bodies.join(", "),
+                    regs.join("; "),
+                    rejected
+                );
+            }
+            if args.png_frames.contains(&k) {
+                let mut fig = Vec::new();
+                let (fw, fh) = water::render::figure(
+                    &src.rgb,
+                    det.gray(),
+                    &mask,
+                    src.width,
+                    src.height,
+                    &mut fig,
+                );
+                // Half size keeps the committed pictures small.
+                let (hw, hh) = (fw / 2, fh / 2);
+                let mut half = vec![0u8; hw * hh * 3];
+                for y in 0..hh {
+                    for x in 0..hw {
+                        for c in 0..3 {
+                            let s: u32 = [(0, 0), (0, 1), (1, 0), (1, 1)]
+                                .iter()
+                                .map(|(dy, dx)| fig[((2 * y + dy) * fw + 2 * x + dx) * 3 + c] as u32)
+                                .sum();
+                            half[(y * hw + x) * 3 + c] = (s / 4) as u8;
+                        }
+                    }
+                }
+                std::fs::create_dir_all(&args.png_dir)?;
+                let path = args.png_dir.join(format!("{name}-t{t:04.1}.png"));
+                image::save_buffer(&path, &half, hw as u32, hh as u32, image::ExtendedColorType::Rgb8)
+                    .with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "\n{name}: {} frames at {}x{}, detector median {:.1} ms",
+            args.frames,
+            src.width,
+            src.height,
+            times[times.len() / 2]
+        );
+        print_table(&table);
+        println!(
+            "frames with a false water region: {false_frames}/{} ({:.1}%)",
+            args.frames,
+            100.0 * false_frames as f64 / args.frames.max(1) as f64
+        );
+        if args.stats {
+            println!("cue rates per truth class (% of pixels): colour texture reflection zero-disp WATER");
+            for (c, s) in CLASSES.iter().zip(&class_cues) {
+                let pct = |k: usize| 100.0 * s[k] as f64 / s[0].max(1) as f64;
+                println!(
+                    "  {:<10} {:>8} px  {:5.1} {:5.1} {:5.1} {:5.1} {:5.1}",
+                    truth_class::name(*c),
+                    s[0],
+                    pct(1),
+                    pct(2),
+                    pct(3),
+                    pct(4),
+                    pct(5)
+                );
+            }
+        }
+        frames_total += args.frames;
+        false_total += false_frames;
+    }
+    if args.scenarios.len() > 1 {
+        println!("\nall scenarios:");
+        print_table(&total);
+        println!(
+            "frames with a false water region: {false_total}/{frames_total} ({:.1}%)",
+            100.0 * false_total as f64 / frames_total.max(1) as f64
+        );
+    }
+    Ok(())
+}
+
+fn print_table(t: &RangeTable) {
+    println!("  range bin (leading edge)   bodies in view   detected");
+    for k in 0..t.seen.len() {
+        let lo = if k == 0 { 0.0 } else { t.edges[k - 1] };
+        let hi = t.edges.get(k).map_or("inf".to_string(), |e| format!("{e:.0}"));
+        let rate = if t.seen[k] > 0 {
+            format!("{:.1}%", 100.0 * t.detected[k] as f64 / t.seen[k] as f64)
+        } else {
+            "-".into()
+        };
+        println!("  {:>5.0}-{:<5} m   {:>16}   {:>8}", lo, hi, t.seen[k], rate);
+    }
+    for r in [7.0, 10.0, 15.0] {
+        if let Some(rate) = t.rate_within(r) {
+            println!("  detected within {r:.0} m: {:.1}%", 100.0 * rate);
+        }
+    }
+}
