@@ -166,6 +166,19 @@ fn main() -> Result<()> {
                     rejected
                 );
             }
+            if args.verbose {
+                let (stats, verdicts) = det.candidates();
+                for (s, v) in stats.iter().zip(verdicts).skip(1) {
+                    if s.pixels >= 500 && *v != water::regions::Verdict::Water {
+                        println!("    rejected {v:?}: {s:?}");
+                    }
+                    if std::env::var_os("WATER_DEBUG").is_some()
+                        && *v == water::regions::Verdict::AboveGround
+                    {
+                        debug_perimeter(&src, &det, &vehicle, s);
+                    }
+                }
+            }
             if args.png_frames.contains(&k) {
                 let mut fig = Vec::new();
                 let (fw, fh) = water::render::figure(
@@ -256,6 +269,49 @@ fn print_table(t: &RangeTable) {
     for r in [7.0, 10.0, 15.0] {
         if let Some(rate) = t.rate_within(r) {
             println!("  detected within {r:.0} m: {:.1}%", 100.0 * rate);
+        }
+    }
+}
+
+/// Prints the perimeter points of a region rejected as above the ground.
+fn debug_perimeter(
+    src: &common::SimStereo,
+    det: &WaterDetector,
+    vehicle: &messages::Pose,
+    s: &water::regions::RegionStats,
+) {
+    let geo = water::geometry::FrameGeometry::new(&src.camera, vehicle);
+    let labels = det.region_labels();
+    let w = src.width;
+    let [u0, v0, _, _] = s.bbox;
+    let l = labels[v0 as usize * w + (u0 as usize..w).find(|&u| labels[v0 as usize * w + u] != 0).unwrap_or(0)];
+    let mut n = 0;
+    for i in 0..labels.len() {
+        if labels[i] != l {
+            continue;
+        }
+        let (u, v) = (i % w, i / w);
+        for (du, dv) in [(-2i64, 0i64), (2, 0), (0, -2), (0, 2)] {
+            let (uu, vv) = (u as i64 + du, v as i64 + dv);
+            if uu < 0 || vv < 0 || uu >= w as i64 || vv >= src.height as i64 {
+                continue;
+            }
+            let j = vv as usize * w + uu as usize;
+            let d = src.disparity[j];
+            if labels[j] == l || !d.is_finite() {
+                continue;
+            }
+            let z = geo.depth(d);
+            let r = geo.ray(uu as f64, vv as f64);
+            let p = [geo.origin[0] + z * r[0], geo.origin[1] + z * r[1], geo.origin[2] + z * r[2]];
+            let g = det.ground().ground_at(p[0], p[1]);
+            n += 1;
+            if n % 25 == 0 {
+                println!(
+                    "      ({uu},{vv}) d={d:.1} p=({:.1},{:.1},{:.2}) g={g:.2} label={}",
+                    p[0], p[1], p[2], truth_class::name(src.labels[j])
+                );
+            }
         }
     }
 }

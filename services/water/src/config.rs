@@ -138,6 +138,9 @@ pub struct ReflectionParams {
     pub margin_per_m: f32,
     /// Points farther than this are not used (m).
     pub max_range_m: f32,
+    /// A pixel must lie this far (px) right of the column where the ground's disparity would take
+    /// its match out of the right image (the matcher's half block plus slack).
+    pub edge_margin_px: usize,
 }
 
 impl Default for ReflectionParams {
@@ -146,6 +149,7 @@ impl Default for ReflectionParams {
             margin_m: 0.4,
             margin_per_m: 0.015,
             max_range_m: 80.0,
+            edge_margin_px: 8,
         }
     }
 }
@@ -203,6 +207,9 @@ pub struct GroundParams {
     pub min_points: usize,
     /// Width of a radial swath (m); the paper uses 2 m.
     pub swath_m: f32,
+    /// The swath's "minimum" elevation is this quantile of its flat cells' modes (0 = the true
+    /// minimum; a little above it ignores the mirror images of the ground seen in water).
+    pub min_quantile: f32,
     /// Bearing sectors per full turn of the swath map (1 = whole rings).
     pub sectors: usize,
     /// The mode may be this far above its swath's minimum (m).
@@ -224,6 +231,7 @@ impl Default for GroundParams {
             max_std_m: 0.12,
             min_points: 4,
             swath_m: 2.0,
+            min_quantile: 0.25,
             sectors: 12,
             max_above_min_m: 0.5,
             spike_m: 0.6,

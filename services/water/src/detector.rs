@@ -172,6 +172,12 @@ impl WaterDetector {
         &self.labels
     }
 
+    /// Statistics and verdict of every candidate region of the last frame, indexed by label (entry 0
+    /// is the background).
+    pub fn candidates(&self) -> (&[RegionStats], &[Verdict]) {
+        (&self.stats, &self.verdicts)
+    }
+
     /// Ground detection of the last frame.
     pub fn ground(&self) -> &Ground {
         &self.ground
@@ -359,7 +365,17 @@ impl WaterDetector {
                     let (x, y) = (geo.origin[0] + z * ray[0], geo.origin[1] + z * ray[1]);
                     let g = ground.ground_at(x, y);
                     let r = range[row + u];
-                    if e < g - (rf.margin_m + rf.margin_per_m * r) && r <= rf.max_range_m {
+                    // Where the ground's own disparity would put the match outside the right
+                    // image, the matcher can only return a wrong, smaller disparity, which looks
+                    // like a point below the ground: no evidence there.
+                    let t_ground = (g as f64 - geo.origin[2]) / ray[2];
+                    let matchable = ray[2] >= 0.0
+                        || t_ground <= 0.0
+                        || (u as f64) >= geo.fx * geo.baseline / t_ground + rf.edge_margin_px as f64;
+                    if matchable
+                        && e < g - (rf.margin_m + rf.margin_per_m * r)
+                        && r <= rf.max_range_m
+                    {
                         m[u] |= water_cue::REFLECTION;
                     } else {
                         aux[u] |= RANGE;
@@ -404,7 +420,13 @@ impl WaterDetector {
                 let i = v * w + u;
                 let l = self.labels[i] as usize;
                 if l != 0 {
-                    self.stats[l].add(u, v, self.joined[i], (v as f32) < self.horizon[u]);
+                    self.stats[l].add(
+                        u,
+                        v,
+                        self.joined[i],
+                        (v as f32) < self.horizon[u],
+                        u >= cfg.zero_disparity.left_margin_px,
+                    );
                 }
             }
         }

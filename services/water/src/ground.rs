@@ -217,16 +217,29 @@ impl Ground {
     fn swaths(&mut self) {
         let p = self.params.clone();
         let (rings, sectors) = (self.rings, self.sectors);
+        // The swath "minimum" is a low quantile of its flat cells' modes: mirror images of the
+        // ground in water are flat too and lie below it, and must not become the minimum.
         self.swath_min.fill(f32::NAN);
+        self.keys.clear();
         for i in 0..self.cells.len() {
             let c = self.cells[i];
             if c.flat {
                 let [x, y] = self.grid.cell_center(i);
                 let s = self.swath_of(x, y);
-                if !(self.swath_min[s] <= c.mode) {
-                    self.swath_min[s] = c.mode;
-                }
+                self.keys.push(((s as u64) << 32) | ordered(c.mode) as u64);
             }
+        }
+        self.keys.sort_unstable();
+        let mut a = 0;
+        while a < self.keys.len() {
+            let s = (self.keys[a] >> 32) as usize;
+            let mut b = a;
+            while b < self.keys.len() && (self.keys[b] >> 32) as usize == s {
+                b += 1;
+            }
+            let k = a + ((b - a - 1) as f32 * p.min_quantile.clamp(0.0, 1.0)).round() as usize;
+            self.swath_min[s] = unordered(self.keys[k] as u32);
+            a = b;
         }
         // Spike filter along range, then gap filling by interpolation (section 2).
         for sector in 0..sectors {

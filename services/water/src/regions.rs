@@ -92,6 +92,8 @@ pub struct RegionStats {
     /// Pixels with each joined cue: colour, texture, reflection, zero disparity.
     pub cues: [u32; 4],
     pub above_horizon: u32,
+    /// Pixels where the zero-disparity cue can fire at all (outside the matcher's blind margin).
+    pub zero_disparity_known: u32,
     /// Perimeter samples with a stereo point that is not a reflection, and those above the ground.
     pub range_points: u32,
     pub above_ground: u32,
@@ -108,6 +110,7 @@ impl RegionStats {
         v: usize,
         cues: u8,
         above_horizon: bool,
+        zero_disparity_known: bool,
     ) {
         if self.pixels == 0 {
             self.bbox = [u as u32, v as u32, u as u32, v as u32];
@@ -122,6 +125,7 @@ impl RegionStats {
             self.cues[k] += (cues & bit != 0) as u32;
         }
         self.above_horizon += above_horizon as u32;
+        self.zero_disparity_known += zero_disparity_known as u32;
         self.sum_u += u as u64;
         self.sum_v += v as u64;
     }
@@ -162,7 +166,12 @@ pub fn judge(s: &RegionStats, p: &RuleParams) -> Verdict {
     let share = s.cues.map(|c| c as f32 / n);
     let present = share.iter().filter(|&&f| f >= p.min_cue_share).count();
     let color_led = share[0] >= p.min_color_share && present >= p.min_cues;
-    let reflection_led = share[2] >= p.min_reflection_share && share[3] >= p.min_cue_share;
+    // Where the matcher cannot produce disparities (its blind left margin) zero disparity carries
+    // no evidence, so it is asked for only when most of the region could show it.
+    let known = s.zero_disparity_known as f32;
+    let zero_disparity =
+        known < 0.5 * n || s.cues[3] as f32 >= p.min_cue_share * known;
+    let reflection_led = share[2] >= p.min_reflection_share && zero_disparity;
     if !(color_led || reflection_led) {
         return Verdict::InvalidCues;
     }
@@ -197,6 +206,7 @@ mod tests {
         RegionStats {
             pixels,
             cues,
+            zero_disparity_known: pixels,
             ..RegionStats::default()
         }
     }
