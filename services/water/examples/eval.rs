@@ -60,7 +60,8 @@ fn main() -> Result<()> {
     let mut total = RangeTable::new(&EDGES);
     let (mut frames_total, mut false_total) = (0usize, 0usize);
     for scenario in &args.scenarios {
-        let mut src = common::SimStereo::new(scenario, &args.head, args.scale, args.num_disparities)?;
+        let mut src =
+            common::SimStereo::new(scenario, &args.head, args.scale, args.num_disparities)?;
         let mut cfg = WaterConfig::default();
         cfg.zero_disparity.left_margin_px = src.num_disparities;
         let mut det = WaterDetector::new(cfg);
@@ -68,7 +69,11 @@ fn main() -> Result<()> {
         let mut false_frames = 0usize;
         let mut class_cues = [[0u64; 6]; 5];
         let (mut of, mut ranges) = (Vec::new(), Vec::new());
-        let name = scenario.file_stem().unwrap_or_default().to_string_lossy().to_string();
+        let name = scenario
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .to_string();
         let mut times = Vec::new();
         for k in 0..args.frames {
             let t = args.start + k as f64 * args.step;
@@ -197,7 +202,9 @@ fn main() -> Result<()> {
                         for c in 0..3 {
                             let s: u32 = [(0, 0), (0, 1), (1, 0), (1, 1)]
                                 .iter()
-                                .map(|(dy, dx)| fig[((2 * y + dy) * fw + 2 * x + dx) * 3 + c] as u32)
+                                .map(|(dy, dx)| {
+                                    fig[((2 * y + dy) * fw + 2 * x + dx) * 3 + c] as u32
+                                })
                                 .sum();
                             half[(y * hw + x) * 3 + c] = (s / 4) as u8;
                         }
@@ -205,8 +212,14 @@ fn main() -> Result<()> {
                 }
                 std::fs::create_dir_all(&args.png_dir)?;
                 let path = args.png_dir.join(format!("{name}-t{t:04.1}.png"));
-                image::save_buffer(&path, &half, hw as u32, hh as u32, image::ExtendedColorType::Rgb8)
-                    .with_context(|| format!("writing {}", path.display()))?;
+                image::save_buffer(
+                    &path,
+                    &half,
+                    hw as u32,
+                    hh as u32,
+                    image::ExtendedColorType::Rgb8,
+                )
+                .with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }
         }
@@ -258,13 +271,19 @@ fn print_table(t: &RangeTable) {
     println!("  range bin (leading edge)   bodies in view   detected");
     for k in 0..t.seen.len() {
         let lo = if k == 0 { 0.0 } else { t.edges[k - 1] };
-        let hi = t.edges.get(k).map_or("inf".to_string(), |e| format!("{e:.0}"));
+        let hi = t
+            .edges
+            .get(k)
+            .map_or("inf".to_string(), |e| format!("{e:.0}"));
         let rate = if t.seen[k] > 0 {
             format!("{:.1}%", 100.0 * t.detected[k] as f64 / t.seen[k] as f64)
         } else {
             "-".into()
         };
-        println!("  {:>5.0}-{:<5} m   {:>16}   {:>8}", lo, hi, t.seen[k], rate);
+        println!(
+            "  {:>5.0}-{:<5} m   {:>16}   {:>8}",
+            lo, hi, t.seen[k], rate
+        );
     }
     for r in [7.0, 10.0, 15.0] {
         if let Some(rate) = t.rate_within(r) {
@@ -284,7 +303,10 @@ fn debug_perimeter(
     let labels = det.region_labels();
     let w = src.width;
     let [u0, v0, _, _] = s.bbox;
-    let l = labels[v0 as usize * w + (u0 as usize..w).find(|&u| labels[v0 as usize * w + u] != 0).unwrap_or(0)];
+    let l = labels[v0 as usize * w
+        + (u0 as usize..w)
+            .find(|&u| labels[v0 as usize * w + u] != 0)
+            .unwrap_or(0)];
     let mut n = 0;
     for i in 0..labels.len() {
         if labels[i] != l {
@@ -303,13 +325,20 @@ fn debug_perimeter(
             }
             let z = geo.depth(d);
             let r = geo.ray(uu as f64, vv as f64);
-            let p = [geo.origin[0] + z * r[0], geo.origin[1] + z * r[1], geo.origin[2] + z * r[2]];
+            let p = [
+                geo.origin[0] + z * r[0],
+                geo.origin[1] + z * r[1],
+                geo.origin[2] + z * r[2],
+            ];
             let g = det.ground().ground_at(p[0], p[1]);
             n += 1;
             if n % 25 == 0 {
                 println!(
                     "      ({uu},{vv}) d={d:.1} p=({:.1},{:.1},{:.2}) g={g:.2} label={}",
-                    p[0], p[1], p[2], truth_class::name(src.labels[j])
+                    p[0],
+                    p[1],
+                    p[2],
+                    truth_class::name(src.labels[j])
                 );
             }
         }

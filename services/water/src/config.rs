@@ -205,6 +205,8 @@ pub struct GroundParams {
     /// Standard deviation of those points at or below which the cell is flat (m).
     pub max_std_m: f32,
     pub min_points: usize,
+    /// Nearer than this (m) only every other pixel in both directions feeds the cells.
+    pub dense_range_m: f32,
     /// Width of a radial swath (m); the paper uses 2 m.
     pub swath_m: f32,
     /// The swath's "minimum" elevation is this quantile of its flat cells' modes (0 = the true
@@ -230,6 +232,7 @@ impl Default for GroundParams {
             close_band_m: 0.5,
             max_std_m: 0.12,
             min_points: 4,
+            dense_range_m: 12.0,
             swath_m: 2.0,
             min_quantile: 0.25,
             sectors: 12,

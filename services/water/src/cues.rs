@@ -111,19 +111,38 @@ pub fn sky_reference(
 /// Whether one pixel's colour is consistent with a sky reflection.
 #[inline]
 pub fn is_sky_reflection(h: f32, s: f32, v: f32, sky: &SkyReference, p: &ColorParams) -> bool {
-    if s > (sky.saturation + p.saturation_margin).min(p.max_saturation) {
-        return false;
-    }
-    if v < p.min_value_rel * sky.value || v > p.max_value_rel * sky.value {
-        return false;
-    }
+    saturation_value_ok(s, v, sky, p) && hue_ok(h, s, sky, p)
+}
+
+#[inline]
+fn saturation_value_ok(s: f32, v: f32, sky: &SkyReference, p: &ColorParams) -> bool {
+    s <= (sky.saturation + p.saturation_margin).min(p.max_saturation)
+        && v >= p.min_value_rel * sky.value
+        && v <= p.max_value_rel * sky.value
+}
+
+#[inline]
+fn hue_ok(h: f32, s: f32, sky: &SkyReference, p: &ColorParams) -> bool {
     if s >= p.hue_min_saturation && sky.saturation >= p.hue_min_saturation {
         let d = (h - sky.hue).abs();
-        if d.min(360.0 - d) > p.hue_tolerance_deg {
-            return false;
-        }
+        d.min(360.0 - d) <= p.hue_tolerance_deg
+    } else {
+        true
     }
-    true
+}
+
+/// The same test with the hue computed only for pixels that pass saturation and brightness (most
+/// dry ground fails there).
+#[inline]
+fn sky_reflection_rgb(px: &[u8], sky: &SkyReference, p: &ColorParams) -> bool {
+    let max = px[0].max(px[1]).max(px[2]) as f32;
+    let min = px[0].min(px[1]).min(px[2]) as f32;
+    let s = if max > 0.0 { (max - min) / max } else { 0.0 };
+    if !saturation_value_ok(s, max, sky, p) {
+        return false;
+    }
+    let (h, s, _) = hsv(px[0], px[1], px[2]);
+    hue_ok(h, s, sky, p)
 }
 
 /// Sets `water_cue::COLOR` in `mask` (rows of `width`) and fills `gray` with luma.
@@ -141,11 +160,8 @@ pub fn color_cue(
         .for_each(|((m, g), src)| {
             for ((m, g), px) in m.iter_mut().zip(g.iter_mut()).zip(src.chunks_exact(3)) {
                 *g = luma(px[0], px[1], px[2]);
-                if p.enabled {
-                    let (h, s, v) = hsv(px[0], px[1], px[2]);
-                    if is_sky_reflection(h, s, v, sky, p) {
-                        *m |= water_cue::COLOR;
-                    }
+                if p.enabled && sky_reflection_rgb(px, sky, p) {
+                    *m |= water_cue::COLOR;
                 }
             }
         });
@@ -219,22 +235,20 @@ pub fn texture_cue(
 ) {
     let r = p.radius_px;
     let w1 = width + 1;
+    // Integer test: n * sum(I^2) - sum(I)^2 <= max_var * n^2 (no division per pixel).
     let max_var = (p.max_std as f64) * (p.max_std as f64);
     mask.par_chunks_mut(width).enumerate().for_each(|(y, m)| {
         let y0 = y.saturating_sub(r);
         let y1 = (y + r + 1).min(height);
+        let (a, b) = (y0 * w1, y1 * w1);
         for (x, m) in m.iter_mut().enumerate() {
             let x0 = x.saturating_sub(r);
             let x1 = (x + r + 1).min(width);
-            let n = ((y1 - y0) * (x1 - x0)) as f64;
-            let s = (ii.sum[y1 * w1 + x1] + ii.sum[y0 * w1 + x0]
-                - ii.sum[y0 * w1 + x1]
-                - ii.sum[y1 * w1 + x0]) as f64;
-            let q = (ii.sq[y1 * w1 + x1] + ii.sq[y0 * w1 + x0]
-                - ii.sq[y0 * w1 + x1]
-                - ii.sq[y1 * w1 + x0]) as f64;
-            let var = (q - s * s / n) / n;
-            if var <= max_var {
+            let n = ((y1 - y0) * (x1 - x0)) as u64;
+            let s = (ii.sum[b + x1] + ii.sum[a + x0] - ii.sum[a + x1] - ii.sum[b + x0]) as u64;
+            let q = ii.sq[b + x1] + ii.sq[a + x0] - ii.sq[a + x1] - ii.sq[b + x0];
+            let spread = n * q - s * s;
+            if (spread as f64) <= max_var * (n * n) as f64 {
                 *m |= water_cue::TEXTURE;
             }
         }

@@ -110,6 +110,8 @@ pub struct WaterDetector {
     aux: Vec<u8>,
     elev: Vec<f32>,
     range: Vec<f32>,
+    /// World east/north of each pixel's stereo point.
+    xy: Vec<[f32; 2]>,
     cell: Vec<u32>,
     labels: Vec<u32>,
     parent: Vec<u32>,
@@ -142,6 +144,7 @@ impl WaterDetector {
             aux: Vec::new(),
             elev: Vec::new(),
             range: Vec::new(),
+            xy: Vec::new(),
             cell: Vec::new(),
             labels: Vec::new(),
             parent: Vec::new(),
@@ -243,6 +246,7 @@ impl WaterDetector {
         self.aux.resize(n, 0);
         self.elev.resize(n, f32::NAN);
         self.range.resize(n, f32::NAN);
+        self.xy.resize(n, [f32::NAN; 2]);
         self.cell.resize(n, NO_CELL);
         self.labels.resize(n, 0);
         self.horizon.resize(w, 0.0);
@@ -270,14 +274,16 @@ impl WaterDetector {
         // Stereo points in the world: elevation, horizontal range from the vehicle, map cell.
         let max_range = cfg.reflection.max_range_m.max(cfg.ground.max_range_m) as f64;
         let ground_range = cfg.ground.max_range_m;
+        let dense = cfg.ground.dense_range_m;
         let veh = geo.vehicle;
         self.elev
             .par_chunks_mut(w)
             .zip(self.range.par_chunks_mut(w))
             .zip(self.cell.par_chunks_mut(w))
+            .zip(self.xy.par_chunks_mut(w))
             .zip(frame.disparity.par_chunks(w))
             .enumerate()
-            .for_each(|(v, (((el, rg), ce), disp))| {
+            .for_each(|(v, ((((el, rg), ce), xy), disp))| {
                 for u in 0..w {
                     el[u] = f32::NAN;
                     rg[u] = f32::NAN;
@@ -293,13 +299,18 @@ impl WaterDetector {
                         geo.origin[1] + z * ray[1],
                         geo.origin[2] + z * ray[2],
                     ];
-                    let r = ((p[0] - veh[0]).powi(2) + (p[1] - veh[1]).powi(2)).sqrt();
+                    let (dx, dy) = (p[0] - veh[0], p[1] - veh[1]);
+                    let r = (dx * dx + dy * dy).sqrt();
                     if r > max_range {
                         continue;
                     }
                     el[u] = p[2] as f32;
                     rg[u] = r as f32;
-                    if r as f32 <= ground_range {
+                    xy[u] = [p[0] as f32, p[1] as f32];
+                    // Near cells get hundreds of points: every other pixel in both directions is
+                    // plenty for their mode and keeps the per-frame sort small.
+                    let sparse = (r as f32) < dense && (u | v) & 1 != 0;
+                    if r as f32 <= ground_range && !sparse {
                         ce[u] = grid.cell_of(p[0], p[1]);
                     }
                 }
@@ -334,6 +345,7 @@ impl WaterDetector {
         let horizon = &self.horizon;
         let elev = &self.elev;
         let range = &self.range;
+        let xy = &self.xy;
         self.mask
             .par_chunks_mut(w)
             .zip(self.aux.par_chunks_mut(w))
@@ -359,10 +371,9 @@ impl WaterDetector {
                     if e.is_nan() {
                         continue;
                     }
-                    // Recover the point's position from its range along the pixel ray.
-                    let z = geo.depth(d);
+                    let [x, y] = xy[row + u];
+                    let (x, y) = (x as f64, y as f64);
                     let ray = geo.ray(u as f64, v as f64);
-                    let (x, y) = (geo.origin[0] + z * ray[0], geo.origin[1] + z * ray[1]);
                     let g = ground.ground_at(x, y);
                     let r = range[row + u];
                     // Where the ground's own disparity would put the match outside the right
@@ -371,7 +382,8 @@ impl WaterDetector {
                     let t_ground = (g as f64 - geo.origin[2]) / ray[2];
                     let matchable = ray[2] >= 0.0
                         || t_ground <= 0.0
-                        || (u as f64) >= geo.fx * geo.baseline / t_ground + rf.edge_margin_px as f64;
+                        || (u as f64)
+                            >= geo.fx * geo.baseline / t_ground + rf.edge_margin_px as f64;
                     if matchable
                         && e < g - (rf.margin_m + rf.margin_per_m * r)
                         && r <= rf.max_range_m
@@ -456,7 +468,8 @@ impl WaterDetector {
                     let s = &mut self.stats[l];
                     s.range_points += 1;
                     s.above_ground += (self.aux[j] & ABOVE_GROUND != 0) as u32;
-                    let c = self.cell[j];
+                    let [x, y] = self.xy[j];
+                    let c = grid.cell_of(x as f64, y as f64);
                     if c == NO_CELL {
                         continue;
                     }

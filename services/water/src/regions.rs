@@ -169,8 +169,7 @@ pub fn judge(s: &RegionStats, p: &RuleParams) -> Verdict {
     // Where the matcher cannot produce disparities (its blind left margin) zero disparity carries
     // no evidence, so it is asked for only when most of the region could show it.
     let known = s.zero_disparity_known as f32;
-    let zero_disparity =
-        known < 0.5 * n || s.cues[3] as f32 >= p.min_cue_share * known;
+    let zero_disparity = known < 0.5 * n || s.cues[3] as f32 >= p.min_cue_share * known;
     let reflection_led = share[2] >= p.min_reflection_share && zero_disparity;
     if !(color_led || reflection_led) {
         return Verdict::InvalidCues;

@@ -1,3 +1,5 @@
+#![allow(dead_code)] // Each example uses part of it.
+
 //! Frames for the examples: the simulator renders the colour head, the stereo library matches the
 //! (downscaled) pair as the running stack would, and the simulator's truth is kept for scoring.
 
@@ -45,7 +47,10 @@ impl SimStereo {
             .head_index(head)
             .with_context(|| format!("no head `{head}` in {}", scenario.display()))?;
         let h = sim.world.heads[index].clone();
-        anyhow::ensure!(h.encoding == Encoding::Rgb8, "head `{head}` is not a colour head");
+        anyhow::ensure!(
+            h.encoding == Encoding::Rgb8,
+            "head `{head}` is not a colour head"
+        );
         let (w, ht) = (h.width as usize / scale, h.height as usize / scale);
         // Ideal rectified pair (as `sim calib` writes it), at the working size.
         let f = h.focal_px() / scale as f64;
@@ -160,16 +165,10 @@ impl SimStereo {
                 for c in 0..3 {
                     self.rgb[3 * o + c] = (acc[c] / k) as u8;
                 }
-                self.left[o] = water::cues::luma(
-                    (acc[0] / k) as u8,
-                    (acc[1] / k) as u8,
-                    (acc[2] / k) as u8,
-                );
-                self.right[o] = water::cues::luma(
-                    (acc[3] / k) as u8,
-                    (acc[4] / k) as u8,
-                    (acc[5] / k) as u8,
-                );
+                self.left[o] =
+                    water::cues::luma((acc[0] / k) as u8, (acc[1] / k) as u8, (acc[2] / k) as u8);
+                self.right[o] =
+                    water::cues::luma((acc[3] / k) as u8, (acc[4] / k) as u8, (acc[5] / k) as u8);
             }
         }
         let out = self.pipeline.process(w, h, &self.left, &self.right)?;
