@@ -38,6 +38,9 @@ struct Args {
     png_frames: Vec<usize>,
     #[arg(long, default_value = "docs/water")]
     png_dir: PathBuf,
+    /// Downscale factor of the pictures (from the working size).
+    #[arg(long, default_value_t = 2)]
+    png_downscale: usize,
     /// Print each frame's regions and bodies.
     #[arg(long)]
     verbose: bool,
@@ -194,32 +197,22 @@ fn main() -> Result<()> {
                     src.height,
                     &mut fig,
                 );
-                // Half size keeps the committed pictures small.
-                let (hw, hh) = (fw / 2, fh / 2);
-                let mut half = vec![0u8; hw * hh * 3];
+                // Downscaled by nearest sample, which keeps the quantized colours: the pictures
+                // are committed, so they must stay small.
+                let k = args.png_downscale.max(1);
+                let (hw, hh) = (fw / k, fh / k);
+                let mut small = vec![0u8; hw * hh * 3];
                 for y in 0..hh {
                     for x in 0..hw {
-                        for c in 0..3 {
-                            let s: u32 = [(0, 0), (0, 1), (1, 0), (1, 1)]
-                                .iter()
-                                .map(|(dy, dx)| {
-                                    fig[((2 * y + dy) * fw + 2 * x + dx) * 3 + c] as u32
-                                })
-                                .sum();
-                            half[(y * hw + x) * 3 + c] = (s / 4) as u8;
-                        }
+                        let src = ((k * y) * fw + k * x) * 3;
+                        small[(y * hw + x) * 3..(y * hw + x) * 3 + 3]
+                            .copy_from_slice(&fig[src..src + 3]);
                     }
                 }
                 std::fs::create_dir_all(&args.png_dir)?;
                 let path = args.png_dir.join(format!("{name}-t{t:04.1}.png"));
-                image::save_buffer(
-                    &path,
-                    &half,
-                    hw as u32,
-                    hh as u32,
-                    image::ExtendedColorType::Rgb8,
-                )
-                .with_context(|| format!("writing {}", path.display()))?;
+                save_png(&path, &small, hw as u32, hh as u32)
+                    .with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }
         }
@@ -343,4 +336,18 @@ fn debug_perimeter(
             }
         }
     }
+}
+
+/// Best compression: these pictures are committed.
+fn save_png(path: &std::path::Path, rgb: &[u8], w: u32, h: u32) -> Result<()> {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    use image::ImageEncoder;
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    PngEncoder::new_with_quality(file, CompressionType::Best, FilterType::Adaptive).write_image(
+        rgb,
+        w,
+        h,
+        image::ExtendedColorType::Rgb8,
+    )?;
+    Ok(())
 }

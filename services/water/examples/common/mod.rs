@@ -162,8 +162,8 @@ impl SimStereo {
                 }
                 let k = (s * s) as u32;
                 let o = y * w + x;
-                for c in 0..3 {
-                    self.rgb[3 * o + c] = (acc[c] / k) as u8;
+                for (dst, a) in self.rgb[3 * o..3 * o + 3].iter_mut().zip(&acc) {
+                    *dst = (a / k) as u8;
                 }
                 self.left[o] =
                     water::cues::luma((acc[0] / k) as u8, (acc[1] / k) as u8, (acc[2] / k) as u8);
