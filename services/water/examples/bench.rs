@@ -53,9 +53,7 @@ fn main() -> Result<()> {
             vehicle: src.vehicle(),
         });
     }
-    let mut cfg = WaterConfig::default();
-    cfg.zero_disparity.left_margin_px = src.num_disparities;
-    let mut det = WaterDetector::new(cfg);
+    let mut det = WaterDetector::new(WaterConfig::default());
     let run = |det: &mut WaterDetector, i: &Input| {
         let d = det
             .process(&Frame {

@@ -65,9 +65,7 @@ fn main() -> Result<()> {
     for scenario in &args.scenarios {
         let mut src =
             common::SimStereo::new(scenario, &args.head, args.scale, args.num_disparities)?;
-        let mut cfg = WaterConfig::default();
-        cfg.zero_disparity.left_margin_px = src.num_disparities;
-        let mut det = WaterDetector::new(cfg);
+        let mut det = WaterDetector::new(WaterConfig::default());
         let mut table = RangeTable::new(&EDGES);
         let mut false_frames = 0usize;
         let mut class_cues = [[0u64; 6]; 5];

@@ -110,8 +110,9 @@ pub struct ZeroDisparityParams {
     pub max_disparity: f32,
     /// Whether pixels without a disparity count (a correlator rejects featureless sky reflections).
     pub count_invalid: bool,
-    /// Columns at the left edge where the matcher can never produce a disparity (its search range);
-    /// they carry no evidence.
+    /// Columns at the left edge that never carry evidence. Beyond it, a pixel counts only where
+    /// the ground's disparity would keep its match inside the right image (see
+    /// `ReflectionParams::edge_margin_px`): further left the matcher is blind.
     pub left_margin_px: usize,
     /// Only this far below the horizon (px) and further down.
     pub horizon_margin_px: usize,

@@ -97,6 +97,7 @@ pub struct Detection<'a> {
 /// Internal per-pixel flags next to the cue mask.
 const RANGE: u8 = 1 << 0;
 const ABOVE_GROUND: u8 = 1 << 1;
+const ZERO_DISPARITY_KNOWN: u8 = 1 << 2;
 
 /// Reusable water detector: holds every buffer, sized by the first frame.
 pub struct WaterDetector {
@@ -346,6 +347,7 @@ impl WaterDetector {
         let elev = &self.elev;
         let range = &self.range;
         let xy = &self.xy;
+        let near_ground = self.ground.nearest_ground().unwrap_or(fallback) as f64;
         self.mask
             .par_chunks_mut(w)
             .zip(self.aux.par_chunks_mut(w))
@@ -357,7 +359,18 @@ impl WaterDetector {
                     aux[u] = 0;
                     let d = disp[u];
                     let valid = d.is_finite() && d > 0.0;
-                    if u >= zd.left_margin_px
+                    let ray = geo.ray(u as f64, v as f64);
+                    // Zero disparity is evidence only where the ground itself could have been
+                    // matched (its disparity keeps the match inside the right image).
+                    let t0 = (near_ground - geo.origin[2]) / ray[2];
+                    let known = u >= zd.left_margin_px
+                        && (ray[2] >= 0.0
+                            || t0 <= 0.0
+                            || (u as f64) >= geo.fx * geo.baseline / t0 + rf.edge_margin_px as f64);
+                    if known {
+                        aux[u] |= ZERO_DISPARITY_KNOWN;
+                    }
+                    if known
                         && v as f32 >= horizon[u] + zd.horizon_margin_px as f32
                         && (if valid {
                             d < zd.max_disparity
@@ -373,7 +386,6 @@ impl WaterDetector {
                     }
                     let [x, y] = xy[row + u];
                     let (x, y) = (x as f64, y as f64);
-                    let ray = geo.ray(u as f64, v as f64);
                     let g = ground.ground_at(x, y);
                     let r = range[row + u];
                     // Where the ground's own disparity would put the match outside the right
@@ -437,7 +449,7 @@ impl WaterDetector {
                         v,
                         self.joined[i],
                         (v as f32) < self.horizon[u],
-                        u >= cfg.zero_disparity.left_margin_px,
+                        self.aux[i] & ZERO_DISPARITY_KNOWN != 0,
                     );
                 }
             }
