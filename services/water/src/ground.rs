@@ -494,4 +494,40 @@ mod tests {
             "non-ground cell takes its swath's ground"
         );
     }
+
+    #[test]
+    fn mirror_images_below_the_ground_do_not_become_the_ground() {
+        // One swath of 20 flat cells at 0.3 m; 3 of them hold instead the flat mirror image of the
+        // ground seen in a puddle, 1.2 m lower. A true minimum would make the mirror the ground.
+        let p = GroundParams {
+            swath_m: 50.0,
+            sectors: 1,
+            ..GroundParams::default()
+        };
+        let grid = Grid {
+            width: 20,
+            height: 1,
+            resolution: 1.0,
+            center: [10.0, 0.5],
+        };
+        let mut g = Ground::new(p, 40.0);
+        let (mut cells, mut elev) = (Vec::new(), Vec::new());
+        for c in 0..20u32 {
+            let z = if [4, 9, 15].contains(&c) { -0.9 } else { 0.3 };
+            for i in 0..10 {
+                cells.push(c);
+                elev.push(z + (i % 3) as f32 * 0.01);
+            }
+        }
+        g.update(grid, [0.0, 0.0], &cells, &elev, 0.0);
+        for c in 0..20 {
+            let mirror = [4, 9, 15].contains(&c);
+            assert_eq!(g.cells[c].ground, !mirror, "cell {c}: {:?}", g.cells[c]);
+            assert!(
+                (g.elevation[c] - 0.31).abs() < 0.02,
+                "cell {c}: {}",
+                g.elevation[c]
+            );
+        }
+    }
 }

@@ -120,4 +120,54 @@ mod tests {
         let cc = g.cell_center(c);
         assert!((cc[0] - 10.25).abs() < 1e-9 && (cc[1] - -4.25).abs() < 1e-9);
     }
+
+    #[test]
+    fn a_step_is_lethal_and_flat_ground_is_free() {
+        use crate::config::GroundParams;
+        use crate::ground::Ground;
+        let grid = Grid {
+            width: 6,
+            height: 6,
+            resolution: 0.5,
+            center: [1.5, 1.5],
+        };
+        // Flat ground at 1.0 m with a 0.6 m high flat-topped box on cell (3, 3) and one cell with
+        // no points.
+        let (mut cells, mut elev) = (Vec::new(), Vec::new());
+        for c in 0..36u32 {
+            if c == 0 {
+                continue;
+            }
+            let z = if c == 3 * 6 + 3 { 1.6 } else { 1.0 };
+            for i in 0..12 {
+                cells.push(c);
+                elev.push(z + (i % 4) as f32 * 0.005);
+            }
+        }
+        let gp = GroundParams {
+            swath_m: 20.0,
+            sectors: 1,
+            ..GroundParams::default()
+        };
+        let mut ground = Ground::new(gp, 20.0);
+        ground.update(grid, [1.5, 1.5], &cells, &elev, 0.0);
+        let p = MapParams::default();
+        let mut out = Vec::new();
+        terrain(&ground, &p, &mut out);
+        let step = out[3 * 6 + 3];
+        assert_eq!(step.cost, MapCell::LETHAL_COST, "{step:?}");
+        assert!((step.max_height_cm - 61).abs() <= 2, "{step:?}");
+        let flat = out[6 + 1];
+        assert!(flat.cost < 10 && flat.elevation_cm == 101, "{flat:?}");
+        // Ground cells next to the box see the jump only from the box's side, which is not ground.
+        assert!(out[3 * 6 + 2].cost < 10, "{:?}", out[3 * 6 + 2]);
+        assert_eq!(out[0].cost, MapCell::UNKNOWN_COST);
+        assert_eq!(out[0].observed, 0);
+        let mut water = flat;
+        mark_water(&mut water, 0.95, &p);
+        assert_eq!(
+            (water.water, water.cost, water.elevation_cm),
+            (1, p.water_cost, 95)
+        );
+    }
 }
