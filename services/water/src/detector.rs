@@ -348,6 +348,8 @@ impl WaterDetector {
         let range = &self.range;
         let xy = &self.xy;
         let near_ground = self.ground.nearest_ground().unwrap_or(fallback) as f64;
+        let fb = geo.fx * geo.baseline;
+        let edge = rf.edge_margin_px as f64;
         self.mask
             .par_chunks_mut(w)
             .zip(self.aux.par_chunks_mut(w))
@@ -362,11 +364,12 @@ impl WaterDetector {
                     let ray = geo.ray(u as f64, v as f64);
                     // Zero disparity is evidence only where the ground itself could have been
                     // matched (its disparity keeps the match inside the right image).
-                    let t0 = (near_ground - geo.origin[2]) / ray[2];
+                    // The ground at depth t has disparity fB / t; with t = (g - z0) / ray_z > 0 the
+                    // test u - margin >= fB / t, multiplied by g - z0 < 0, needs no division.
                     let known = u >= zd.left_margin_px
                         && (ray[2] >= 0.0
-                            || t0 <= 0.0
-                            || (u as f64) >= geo.fx * geo.baseline / t0 + rf.edge_margin_px as f64);
+                            || near_ground >= geo.origin[2]
+                            || (u as f64 - edge) * (near_ground - geo.origin[2]) <= fb * ray[2]);
                     if known {
                         aux[u] |= ZERO_DISPARITY_KNOWN;
                     }
@@ -391,11 +394,9 @@ impl WaterDetector {
                     // Where the ground's own disparity would put the match outside the right
                     // image, the matcher can only return a wrong, smaller disparity, which looks
                     // like a point below the ground: no evidence there.
-                    let t_ground = (g as f64 - geo.origin[2]) / ray[2];
-                    let matchable = ray[2] >= 0.0
-                        || t_ground <= 0.0
-                        || (u as f64)
-                            >= geo.fx * geo.baseline / t_ground + rf.edge_margin_px as f64;
+                    let dz = g as f64 - geo.origin[2];
+                    let matchable =
+                        ray[2] >= 0.0 || dz >= 0.0 || (u as f64 - edge) * dz <= fb * ray[2];
                     if matchable
                         && e < g - (rf.margin_m + rf.margin_per_m * r)
                         && r <= rf.max_range_m

@@ -45,6 +45,34 @@ impl Grid {
     }
 }
 
+/// `atan2` to about 0.1 degree, several times faster than libm's: sectors are tens of degrees wide
+/// and this runs for every far range point.
+#[inline]
+pub fn fast_atan2(y: f64, x: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    let (ax, ay) = (x.abs(), y.abs());
+    if ax == 0.0 && ay == 0.0 {
+        return 0.0;
+    }
+    let (z, swap) = if ay > ax {
+        (ax / ay, true)
+    } else {
+        (ay / ax, false)
+    };
+    let mut a = FRAC_PI_4 * z - z * (z - 1.0) * (0.2447 + 0.0663 * z);
+    if swap {
+        a = FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = PI - a;
+    }
+    if y < 0.0 {
+        -a
+    } else {
+        a
+    }
+}
+
 /// Float to an unsigned key with the same order.
 #[inline]
 fn ordered(z: f32) -> u32 {
@@ -140,7 +168,7 @@ impl Ground {
         let (dx, dy) = (x - self.vehicle[0], y - self.vehicle[1]);
         let range = (dx * dx + dy * dy).sqrt();
         let ring = ((range / self.params.swath_m as f64) as usize).min(self.rings - 1);
-        let turn = (dy.atan2(dx) / std::f64::consts::TAU).rem_euclid(1.0);
+        let turn = (fast_atan2(dy, dx) / std::f64::consts::TAU).rem_euclid(1.0);
         let sector = ((turn * self.sectors as f64) as usize).min(self.sectors - 1);
         ring * self.sectors + sector
     }
@@ -427,6 +455,16 @@ fn fill_gaps(v: &mut [f32], sector: usize, sectors: usize, rings: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fast_atan2_is_close_to_libm() {
+        for i in 0..3600 {
+            let t = (i as f64 / 10.0 - 180.0).to_radians() + 1e-3;
+            let (y, x) = (3.0 * t.sin(), 3.0 * t.cos());
+            let e = (fast_atan2(y, x) - y.atan2(x)).abs();
+            assert!(e < 2e-3, "angle {t}: error {e}");
+        }
+    }
 
     #[test]
     fn ordered_keys_sort_like_floats() {
