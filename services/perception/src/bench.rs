@@ -78,9 +78,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             .num_threads(threads)
             .build()
             .context("thread pool")?;
-        let mut mapper = HazardMapper::new(config.clone(), model.clone())
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        let mut out = vec![MapCell::default(); config.grid.width as usize * config.grid.height as usize];
+        let mut mapper =
+            HazardMapper::new(config.clone(), model.clone()).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let mut out =
+            vec![MapCell::default(); config.grid.width as usize * config.grid.height as usize];
         let mut times = Vec::with_capacity(args.frames);
         let mut summary = None;
         for i in 0..args.frames + 3 {

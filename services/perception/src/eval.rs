@@ -101,7 +101,8 @@ fn in_footprint(o: &TruthObject, p: [f64; 2], grow: f64) -> bool {
     let (s, c) = o.pose.yaw.sin_cos();
     let along = dx * c + dy * s;
     let across = -dx * s + dy * c;
-    along.abs() <= o.extent[0] as f64 / 2.0 + grow && across.abs() <= o.extent[1] as f64 / 2.0 + grow
+    along.abs() <= o.extent[0] as f64 / 2.0 + grow
+        && across.abs() <= o.extent[1] as f64 / 2.0 + grow
 }
 
 /// Scores one local map; see the module docs.

@@ -88,8 +88,7 @@ impl CameraToWorld {
             let body = Rotation3::from_euler_angles(pose.roll, pose.pitch, pose.yaw);
             let mount_rot = Rotation3::from_euler_angles(mount.roll, mount.pitch, mount.yaw);
             let rot = body.matrix() * mount_rot.matrix() * bodylike_from_optical();
-            let origin =
-                Vector3::from(pose.position) + body * Vector3::from(mount.position);
+            let origin = Vector3::from(pose.position) + body * Vector3::from(mount.position);
             Ok(Self::new(rot, origin, AttitudeSource::Ins))
         }
     }

@@ -44,9 +44,11 @@ pub struct ProjectionConfig {
     /// Optical depth limits of used points (m).
     pub min_range_m: f64,
     pub max_range_m: f64,
-    /// Points outside this height band (m, relative to the water plane) are discarded as gross
-    /// mismatches (reflections go below the water, so the lower bound is generous).
+    /// Points below this height (m, relative to the water plane) are gross mismatches
+    /// (reflections go below the water, so the bound is generous).
     pub min_height_m: f64,
+    /// Clearance: points higher than this are above the vessel's air draft (bridge decks,
+    /// overhanging branches) and no obstacle to it; most points up there are sky mismatches.
     pub max_height_m: f64,
 }
 
@@ -56,9 +58,9 @@ impl Default for ProjectionConfig {
             row_step: 2,
             col_step: 2,
             min_range_m: 2.0,
-            max_range_m: 120.0,
+            max_range_m: 70.0,
             min_height_m: -5.0,
-            max_height_m: 25.0,
+            max_height_m: 6.0,
         }
     }
 }
@@ -71,6 +73,8 @@ pub struct SpatialConfig {
     /// ... when an obstacle of `min_obstacle_height_m` there would give at least this many points.
     pub min_expected_points: f32,
     pub min_obstacle_height_m: f32,
+    /// Disparity noise (px): points of one surface smear over `2 z^2 sigma / (f B)` metres of range.
+    pub disparity_sigma_px: f32,
 }
 
 impl Default for SpatialConfig {
@@ -79,6 +83,7 @@ impl Default for SpatialConfig {
             isolated_max_points: 1,
             min_expected_points: 3.0,
             min_obstacle_height_m: 0.5,
+            disparity_sigma_px: 0.3,
         }
     }
 }
@@ -346,8 +351,10 @@ impl HazardMapper {
         out: &mut [MapCell],
     ) -> Result<FrameSummary, FrameError> {
         let xf = self.check(frame)?;
-        let (grid, corner) =
-            snapped_grid(&self.config.grid, [frame.vessel.position[0], frame.vessel.position[1]]);
+        let (grid, corner) = snapped_grid(
+            &self.config.grid,
+            [frame.vessel.position[0], frame.vessel.position[1]],
+        );
         if out.len() != grid.cell_count() {
             return Err(FrameError::Output {
                 got: out.len(),
@@ -522,6 +529,8 @@ impl HazardMapper {
         let (gw, gh) = (grid.width as i64, grid.height as i64);
         let res = grid.resolution_m as f32;
         let f = (h.camera.fx * h.camera.fy).sqrt() as f32;
+        let fb = (h.camera.fx * h.camera.baseline_m) as f32;
+        let cam_h = xf.origin[2].max(0.5);
         let p = &self.config.projection;
         let (rs, cs) = (p.row_step as f32, p.col_step as f32);
         let sp = &self.config.spatial;
@@ -550,8 +559,10 @@ impl HazardMapper {
             let range = (((col as f64 + 0.5) * grid.resolution_m - cam[0])
                 .hypot((row as f64 + 0.5) * grid.resolution_m - cam[1]))
             .max(1.0) as f32;
-            // Points per metre of vertical surface one cell wide at this range.
-            let density = (f * res / (range * cs)) * (f / (range * rs));
+            // Points per metre of vertical surface one cell wide at this range, spread over the
+            // cells that range noise smears one surface across.
+            let smear = (2.0 * range * range * sp.disparity_sigma_px / fb / res).max(1.0);
+            let density = (f * res / (range * cs)) * (f / (range * rs)) / smear;
             let expected = density * sp.min_obstacle_height_m;
             let isolated = s.elevated > 0
                 && s.elevated <= sp.isolated_max_points
@@ -568,9 +579,13 @@ impl HazardMapper {
                 (s.max_h - s.min_h).clamp(0.0, 8.0),
                 (elevated as f32 / density).min(8.0),
                 elevated as f32 / s.count as f32,
-                range / 100.0,
+                s.min_h.clamp(-2.0, 8.0),
                 history,
                 neighbours as f32 / 8.0,
+                // The disparity error (px) that would lift water seen along the ray of the
+                // cell's highest point to that height: d h / camera height. Small for the
+                // "walls" that mismatched water near the horizon builds; large for real objects.
+                (fb / range * s.max_h.max(0.0) / cam_h).min(40.0),
             ];
             let probability = if isolated {
                 0.0
@@ -600,7 +615,16 @@ impl HazardMapper {
         }
         for s in &self.scored {
             let (col, row) = ((s.cell as i64) % gw, (s.cell as i64) / gw);
-            touch(&mut m.cells, gw, gh, [corner[0] + col, corner[1] + row], stamp, tau, true, false);
+            touch(
+                &mut m.cells,
+                gw,
+                gh,
+                [corner[0] + col, corner[1] + row],
+                stamp,
+                tau,
+                true,
+                false,
+            );
             let st = &self.stats[s.cell as usize];
             if st.elevated > 0 && !s.isolated {
                 for dr in -1..=1 {

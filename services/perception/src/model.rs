@@ -11,18 +11,22 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Cell features in model order. See [`crate::hazard`] for how each is computed.
+/// Cell features in model order. See [`crate::hazard`] for how each is computed. Range is
+/// deliberately not a feature: in the labelled scenarios most distant hazards are shores, and a
+/// model that learns "far and high is hazard" fails on open water; range enters only through the
+/// normalisations (expected point density and range smear).
 pub const FEATURES: [&str; N_FEATURES] = [
     "max_height_m",
     "mean_height_m",
     "height_spread_m",
     "elevated_extent_m",
     "elevated_fraction",
-    "range_100m",
+    "min_height_m",
     "history",
     "neighbour_support",
+    "water_margin_px",
 ];
-pub const N_FEATURES: usize = 8;
+pub const N_FEATURES: usize = 9;
 
 pub type Features = [f32; N_FEATURES];
 
@@ -118,7 +122,10 @@ impl HazardModel {
             ("weights", &self.weights),
         ] {
             if v.len() != N_FEATURES {
-                return Err(format!("{name} has {} values, expected {N_FEATURES}", v.len()));
+                return Err(format!(
+                    "{name} has {} values, expected {N_FEATURES}",
+                    v.len()
+                ));
             }
             if v.iter().any(|x| !x.is_finite()) {
                 return Err(format!("{name} has a non-finite value"));

@@ -12,7 +12,10 @@ use crate::eval::{score_hazard_map, ScoreParams};
 use crate::hazard::{Frame, GridConfig, HazardConfig, HazardMapper, ProjectionConfig};
 use crate::model::{Features, HazardModel, ModelMetrics, N_FEATURES};
 use anyhow::{bail, Context};
-use messages::{truth_class, CameraModel, DisparityHeader, GroundTruth, Header, LocalMapHeader, MapCell, Name, Pose, WaterPlane};
+use messages::{
+    truth_class, CameraModel, DisparityHeader, GroundTruth, Header, LocalMapHeader, MapCell, Name,
+    Pose, WaterPlane,
+};
 use sim::Simulator;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -27,16 +30,24 @@ pub struct TrainArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Scenarios to train on (names in the scenario directory).
-    #[arg(long, value_delimiter = ',', default_value = "open_water_crossing,channel_markers,cluttered_river")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "follow_boat,channel_markers,cluttered_river"
+    )]
     pub train: Vec<String>,
     /// Scenarios held out for the reported precision and recall.
-    #[arg(long, value_delimiter = ',', default_value = "follow_boat,bridge_pylons")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "open_water_crossing,bridge_pylons"
+    )]
     pub test: Vec<String>,
     /// Directory of the scenario files (default: the simulator's).
     #[arg(long)]
     pub scenarios: Option<PathBuf>,
     /// Frame sequences per scenario, spread over its duration.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 8)]
     pub sequences: usize,
     /// Consecutive frames per sequence.
     #[arg(long, default_value_t = 3)]
@@ -52,6 +63,9 @@ pub struct TrainArgs {
     /// Points higher than this above the water are elevated (m).
     #[arg(long, default_value_t = 0.3)]
     pub elevated_height: f32,
+    /// Also print the mean features of hits, false alarms and misses per held-out scenario.
+    #[arg(long)]
+    pub verbose: bool,
     /// Gradient-descent iterations.
     #[arg(long, default_value_t = 1500)]
     pub iterations: usize,
@@ -140,7 +154,8 @@ fn ground_truth(sim: &Simulator) -> Box<GroundTruth> {
 
 /// Renders, matches and labels the frames of one scenario.
 fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<LabelledFrame>> {
-    let mut sim = Simulator::from_file(path).with_context(|| format!("loading {}", path.display()))?;
+    let mut sim =
+        Simulator::from_file(path).with_context(|| format!("loading {}", path.display()))?;
     let mut heads = Vec::new();
     for name in HEADS {
         let Some(index) = sim.world.head_index(name) else {
@@ -173,16 +188,16 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
             oversize: 1.0,
         };
         calib.validate()?;
-        // The demo's stereo settings (launch/sets/stereo-hh_left.toml), disparity range scaled.
+        // The demo's stereo settings (launch/sets/stereo-hh_left.toml). 128 px of disparity
+        // reach water about 4.5 m from a 640-wide head; fewer leave the lowest rows mismatched.
         let mut search = PlaneSearch {
             lower_fraction: 0.35,
             max_range_m: 25.0,
             ..Default::default()
         };
         search.fit.inlier_distance = 0.25;
-        let ndisp = if h.width >= 1280 { 128 } else { 96 };
         let matcher = MatcherConfig::Bm(BmParams {
-            num_disparities: ndisp,
+            num_disparities: 128,
             ..Default::default()
         });
         let pipeline = FramePipeline::new(&calib, &matcher, search)?;
@@ -210,7 +225,8 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
     let dt: f64 = 0.05;
     for seq in 0..args.sequences {
         // Sequences spread over the scenario, the first after the start-up transient.
-        let start = 1.0 + (duration - 2.0 - span).max(0.0) * seq as f64 / args.sequences.max(1) as f64;
+        let start =
+            1.0 + (duration - 2.0 - span).max(0.0) * seq as f64 / args.sequences.max(1) as f64;
         for k in 0..args.frames {
             let t = start + k as f64 * args.frame_dt;
             while sim.time() + 1e-9 < t {
@@ -233,7 +249,13 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
                     .disparity
                     .data
                     .iter()
-                    .map(|&d| if d < 0 { f32::NAN } else { d as f32 / DISP_SCALE as f32 })
+                    .map(|&d| {
+                        if d < 0 {
+                            f32::NAN
+                        } else {
+                            d as f32 / DISP_SCALE as f32
+                        }
+                    })
                     .collect();
                 let plane = match &result.plane {
                     Ok(p) => WaterPlane {
@@ -281,18 +303,52 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
                 truth_disp.resize(w * ht, 0.0);
                 labels.resize(w * ht, 0);
                 sim.render_truth(*index, &mut truth_disp, &mut labels)?;
+                let labels = source_labels(&disparity, &truth_disp, &labels, w, ht);
                 frames.push(LabelledFrame {
                     header,
                     vessel,
                     disparity,
-                    // Renderer labels start at sky = 0; the contract's classes at sky = 1.
-                    labels: labels.iter().map(|l| l + 1).collect(),
+                    labels,
                     truth: truth.clone(),
                 });
             }
         }
     }
     Ok(frames)
+}
+
+/// Half the block matcher's window: a match can come from any pixel this close.
+const LABEL_RADIUS: usize = 4;
+
+/// The class of the surface each matched pixel's range comes from. Block matching fattens
+/// foreground: sky and water pixels next to a buoy take the buoy's disparity, and their own label
+/// would call those buoy points water. So each pixel takes the label of the pixel within the
+/// matching window whose true disparity is closest to the estimate (its own label on ties).
+/// Renderer labels start at sky = 0; the returned classes are `truth_class` (sky = 1).
+fn source_labels(estimate: &[f32], truth: &[f32], labels: &[u8], w: usize, h: usize) -> Vec<u8> {
+    use rayon::prelude::*;
+    let mut out = vec![0u8; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(v, row)| {
+        for (u, dst) in row.iter_mut().enumerate() {
+            let d = estimate[v * w + u];
+            let own = labels[v * w + u];
+            let mut best = (f32::INFINITY, own);
+            if d.is_finite() {
+                let truth_at = |i: usize| if truth[i].is_finite() { truth[i] } else { 0.0 };
+                best.0 = (truth_at(v * w + u) - d).abs();
+                for y in v.saturating_sub(LABEL_RADIUS)..(v + LABEL_RADIUS + 1).min(h) {
+                    for x in u.saturating_sub(LABEL_RADIUS)..(u + LABEL_RADIUS + 1).min(w) {
+                        let e = (truth_at(y * w + x) - d).abs();
+                        if e < best.0 {
+                            best = (e, labels[y * w + x]);
+                        }
+                    }
+                }
+            }
+            *dst = best.1 + 1;
+        }
+    });
+    out
 }
 
 /// A cell of a frame: features, truth label, and whether the spatial rule dropped it.
@@ -309,6 +365,7 @@ fn map_frames(
     frames: &[LabelledFrame],
     mapper: &mut HazardMapper,
     mut scores: Option<&mut ObjectTally>,
+    skipped: &mut usize,
 ) -> anyhow::Result<Vec<CellSample>> {
     let g = &mapper.config().grid;
     let n = g.width as usize * g.height as usize;
@@ -322,7 +379,15 @@ fn map_frames(
             disparity: &f.disparity,
             vessel: f.vessel,
         };
-        let summary = mapper.process(&frame, &mut out)?;
+        // A frame the service would reject (a plane fit above the camera, say) is skipped.
+        let summary = match mapper.process(&frame, &mut out) {
+            Ok(s) => s,
+            Err(e) => {
+                tracing::debug!("frame {} skipped: {e}", f.header.frame_seq);
+                *skipped += 1;
+                continue;
+            }
+        };
         let (points, cols) = mapper.sampled_points();
         let p = &mapper.config().projection;
         for (i, pt) in points.iter().enumerate() {
@@ -354,8 +419,7 @@ fn map_frames(
             let (d, o) = s.detections();
             t.detected += d;
             t.observed += o;
-            t.errors
-                .extend(s.objects.iter().filter_map(|o| o.error_m));
+            t.errors.extend(s.objects.iter().filter_map(|o| o.error_m));
         }
     }
     Ok(samples)
@@ -385,6 +449,31 @@ fn precision_recall(model: &HazardModel, samples: &[CellSample]) -> (f64, f64, u
     (p, r, tp + fneg)
 }
 
+/// Mean features of true positives, false positives and false negatives.
+fn print_confusion(model: &HazardModel, samples: &[CellSample]) {
+    let mut sums = [[0f64; N_FEATURES]; 3];
+    let mut counts = [0usize; 3];
+    for s in samples {
+        let predicted = !s.isolated && model.probability(&s.features) >= 0.5;
+        let k = match (predicted, s.hazard) {
+            (true, true) => 0,
+            (true, false) => 1,
+            (false, true) => 2,
+            _ => continue,
+        };
+        counts[k] += 1;
+        for i in 0..N_FEATURES {
+            sums[k][i] += s.features[i] as f64;
+        }
+    }
+    for (k, name) in ["hits", "false alarms", "misses"].iter().enumerate() {
+        let mean: Vec<String> = (0..N_FEATURES)
+            .map(|i| format!("{:.2}", sums[k][i] / counts[k].max(1) as f64))
+            .collect();
+        println!("    {name:>12} ({:>6}): {}", counts[k], mean.join(" "));
+    }
+}
+
 fn f1(model: &HazardModel, samples: &[CellSample]) -> f64 {
     let (p, r, _) = precision_recall(model, samples);
     if p + r == 0.0 {
@@ -407,11 +496,12 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     for name in &args.train {
         let t = Instant::now();
         let frames = render_scenario(&scenario_path(&dir, name), args)?;
-        let mut mapper = HazardMapper::new(config.clone(), neutral.clone())
-            .map_err(|e| anyhow::anyhow!(e))?;
-        let cells = map_frames(&frames, &mut mapper, None)?;
+        let mut mapper =
+            HazardMapper::new(config.clone(), neutral.clone()).map_err(|e| anyhow::anyhow!(e))?;
+        let mut skipped = 0;
+        let cells = map_frames(&frames, &mut mapper, None, &mut skipped)?;
         println!(
-            "train {name}: {} frames, {} cells, {} hazard ({:.1} s)",
+            "train {name}: {} frames ({skipped} rejected), {} cells, {} hazard ({:.1} s)",
             frames.len(),
             cells.len(),
             cells.iter().filter(|c| c.hazard).count(),
@@ -463,20 +553,25 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
 
     let mut test_cells = Vec::new();
     for (name, frames) in &test_frames {
-        let mut mapper = HazardMapper::new(config.clone(), model.clone())
-            .map_err(|e| anyhow::anyhow!(e))?;
+        let mut mapper =
+            HazardMapper::new(config.clone(), model.clone()).map_err(|e| anyhow::anyhow!(e))?;
         let mut tally = ObjectTally::default();
-        let cells = map_frames(frames, &mut mapper, Some(&mut tally))?;
+        let mut skipped = 0;
+        let cells = map_frames(frames, &mut mapper, Some(&mut tally), &mut skipped)?;
         let (p, r, positives) = precision_recall(&model, &cells);
         tally.errors.sort_by(f64::total_cmp);
         let median_error = tally.errors.get(tally.errors.len() / 2).copied();
         println!(
-            "held out {name}: {} cells ({positives} hazard), precision {p:.3}, recall {r:.3}; objects detected {}/{} observed, median position error {}",
+            "held out {name}: {} frames ({skipped} rejected), {} cells ({positives} hazard), precision {p:.3}, recall {r:.3}; objects detected {}/{} observed, median position error {}",
+            frames.len(),
             cells.len(),
             tally.detected,
             tally.observed,
             median_error.map_or("-".into(), |e| format!("{e:.2} m"))
         );
+        if args.verbose {
+            print_confusion(&model, &cells);
+        }
         test_cells.extend(cells);
     }
     let (test_p, test_r, _) = precision_recall(&model, &test_cells);

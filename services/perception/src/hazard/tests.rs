@@ -10,7 +10,10 @@ fn model() -> HazardModel {
     weights[3] = 4.0; // elevated extent
     HazardModel {
         version: MODEL_VERSION,
-        features: crate::model::FEATURES.iter().map(|s| s.to_string()).collect(),
+        features: crate::model::FEATURES
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
         elevated_height_m: 0.3,
         mean: vec![0.0; N_FEATURES],
         std: vec![1.0; N_FEATURES],
@@ -40,7 +43,10 @@ fn vessel_of(h: &DisparityHeader) -> Pose {
 }
 
 fn map(mapper: &mut HazardMapper, h: &DisparityHeader, d: &[f32]) -> (Vec<MapCell>, FrameSummary) {
-    let mut out = vec![MapCell::default(); mapper.config().grid.width as usize * mapper.config().grid.height as usize];
+    let mut out = vec![
+        MapCell::default();
+        mapper.config().grid.width as usize * mapper.config().grid.height as usize
+    ];
     let frame = Frame {
         header: h,
         disparity: d,
@@ -51,7 +57,13 @@ fn map(mapper: &mut HazardMapper, h: &DisparityHeader, d: &[f32]) -> (Vec<MapCel
 }
 
 /// The highest cell within `radius` metres of (east, north): (max height m, hazard, distance m).
-fn best_near(out: &[MapCell], g: &GridGeometry, east: f64, north: f64, radius: f64) -> (f64, u8, f64) {
+fn best_near(
+    out: &[MapCell],
+    g: &GridGeometry,
+    east: f64,
+    north: f64,
+    radius: f64,
+) -> (f64, u8, f64) {
     let mut best = (f64::MIN, 0, f64::MAX);
     for row in 0..g.height {
         for col in 0..g.width {
@@ -114,10 +126,15 @@ fn flat_water_gives_no_hazard_and_unknown_elsewhere() {
     assert!(summary.observed_cells > 1000, "{summary:?}");
     assert_eq!(summary.hazard_cells, 0);
     let observed = out.iter().filter(|c| c.observed > 0);
-    assert!(observed.clone().all(|c| c.max_height_cm.abs() <= 2 && c.cost < 20));
+    assert!(observed
+        .clone()
+        .all(|c| c.max_height_cm.abs() <= 2 && c.cost < 20));
     // Behind the camera nothing is seen: unknown cost.
     let (c, r) = summary.grid.cell_of(0.0, -20.0).unwrap();
-    assert_eq!(out[(r * summary.grid.width + c) as usize].cost, MapCell::UNKNOWN_COST);
+    assert_eq!(
+        out[(r * summary.grid.width + c) as usize].cost,
+        MapCell::UNKNOWN_COST
+    );
 }
 
 #[test]
@@ -140,7 +157,11 @@ fn mount_yaw_and_lever_arm_are_added_to_the_ins_heading_and_position() {
     let p = xf.apply([0.0, 0.0, 25.0]);
     let yaw = 110f64.to_radians();
     // Lever arm (0.5 forward, 0.4 left) turned by the 90 degree heading: (-0.4, +0.5).
-    let want = [100.0 - 0.4 + 25.0 * yaw.cos(), 50.0 + 0.5 + 25.0 * yaw.sin(), 3.0];
+    let want = [
+        100.0 - 0.4 + 25.0 * yaw.cos(),
+        50.0 + 0.5 + 25.0 * yaw.sin(),
+        3.0,
+    ];
     for k in 0..3 {
         assert!((p[k] as f64 - want[k]).abs() < 1e-3, "{p:?} vs {want:?}");
     }
@@ -152,7 +173,10 @@ fn mount_yaw_and_lever_arm_are_added_to_the_ins_heading_and_position() {
     assert_eq!(xf.source, AttitudeSource::Ins);
     let p = xf.apply([0.0, 0.0, 25.0]);
     let drop = 3.0 - 25.0 * 10f64.to_radians().sin();
-    assert!((p[2] as f64 - drop).abs() < 0.15, "{p:?}, want height {drop}");
+    assert!(
+        (p[2] as f64 - drop).abs() < 0.15,
+        "{p:?}, want height {drop}"
+    );
 }
 
 #[test]
