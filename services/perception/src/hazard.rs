@@ -148,7 +148,7 @@ impl HazardConfig {
         if !(p.min_range_m >= 0.0 && p.max_range_m > p.min_range_m) {
             return Err("projection needs 0 <= min_range_m < max_range_m".into());
         }
-        if !(p.max_height_m > p.min_height_m) {
+        if p.max_height_m.is_nan() || p.min_height_m.is_nan() || p.max_height_m <= p.min_height_m {
             return Err("projection needs min_height_m < max_height_m".into());
         }
         if !(self.temporal.tau_s >= 0.0 && self.temporal.max_gap_s > 0.0) {
@@ -469,7 +469,7 @@ impl HazardMapper {
                         height: 0.0,
                         depth: 0.0,
                     };
-                    if !(d > 0.0) {
+                    if d.is_nan() || d <= 0.0 {
                         continue; // NaN or at infinity
                     }
                     let z = fb / d;

@@ -146,11 +146,8 @@ impl HazardModel {
     /// Log-odds of a hazard.
     #[inline]
     pub fn logit(&self, x: &Features) -> f32 {
-        let mut z = self.bias;
-        for i in 0..N_FEATURES {
-            z += self.weights[i] * (x[i] - self.mean[i]) / self.std[i];
-        }
-        z
+        let terms = x.iter().zip(&self.mean).zip(&self.std).zip(&self.weights);
+        terms.fold(self.bias, |z, (((x, m), s), w)| z + w * (x - m) / s)
     }
 
     /// Hazard probability of a cell.

@@ -212,3 +212,36 @@ impl Perception {
         ))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_demo_config_loads_with_its_model() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../launch/sets/perception.toml");
+        let config: ServiceConfig = runtime::config::load(&path).unwrap();
+        let p = Perception::new(&config, &config.model_path(&path)).unwrap();
+        assert_eq!(p.cell_count(), 400 * 400);
+        assert!(p.accepts("hh_right") && !p.accepts("color"));
+        let bad = runtime::config::parse::<ServiceConfig>("model = \"m.json\"\ngird = 3\n", "test");
+        assert!(bad.is_err());
+    }
+
+    #[test]
+    fn nearest_ins_sample_within_the_gap() {
+        let mut ins = InsHistory::default();
+        for k in 0..10u64 {
+            let mut s = InsState::default();
+            s.hdr.stamp_ns = 1_000_000_000 + k * 10_000_000;
+            s.pose.position = [k as f64, 0.0, 0.0];
+            ins.push(s).unwrap();
+        }
+        let s = ins.nearest(1_000_000_000 + 31_000_000, 5_000_000).unwrap();
+        assert_eq!(s.pose.position[0], 3.0);
+        assert!(ins.nearest(2_000_000_000, 5_000_000).is_none());
+        let mut nan = InsState::default();
+        nan.pose.yaw = f64::NAN;
+        assert!(ins.push(nan).is_err());
+    }
+}

@@ -462,8 +462,8 @@ fn print_confusion(model: &HazardModel, samples: &[CellSample]) {
             _ => continue,
         };
         counts[k] += 1;
-        for i in 0..N_FEATURES {
-            sums[k][i] += s.features[i] as f64;
+        for (sum, x) in sums[k].iter_mut().zip(&s.features) {
+            *sum += *x as f64;
         }
     }
     for (k, name) in ["hits", "false alarms", "misses"].iter().enumerate() {
