@@ -4,6 +4,16 @@
 //! same head, kept in world-anchored cells so the vessel's motion is compensated), then give each
 //! observed cell a hazard probability from the offline-trained classifier and a traversal cost.
 //!
+//! Cell features (heights relative to the water plane, z = 0): highest, mean and lowest point and
+//! their spread; `elevated_extent_m`, the elevated points (above the model's `elevated_height_m`)
+//! divided by the points one metre of vertical surface would give in that cell at that range
+//! (sampling step, focal length and the range smear of disparity noise included), i.e. roughly how
+//! many metres of solid surface stand there; the elevated fraction; `history`, the decayed share
+//! of this head's recent frames with elevated points at this world cell (0 for a first sighting);
+//! the share of elevated 8-neighbours; `water_margin_px`, the disparity error that would lift water
+//! on the ray of the highest point to its height. Cost: lethal (254) from
+//! `cost.lethal_probability`, below it linear in the probability; unobserved cells 255.
+//!
 //! Buffers are sized at the first frame of a head (warm-up) and reused; a frame allocates nothing.
 //! Projection runs in parallel over image rows into a per-pixel buffer; accumulation into cells is
 //! sequential in pixel order, so the output does not depend on thread timing.
