@@ -1,0 +1,127 @@
+//! `perception run --config FILE`: the perception service. Maps every disparity image of the
+//! configured heads (`usv/stereo/disparity`) into one local hazard map (`usv/perception/local_map`),
+//! with the vessel pose from the INS sample nearest the frame stamp. The disparity stamp is the
+//! primary input reported in the heartbeat.
+//!
+//! `perception train --out FILE`: fits the hazard classifier on rendered scenarios.
+//! `perception bench hazard`: hazard-map time per 1280x960 frame.
+
+use anyhow::Context;
+use messages::{topics, Header};
+use perception::service::{Perception, ServiceConfig};
+use runtime::{Service, Wake};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Parser)]
+#[command(name = "perception", version, about = "Hazard map from stereo range")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(clap::Subcommand)]
+enum Command {
+    /// Run as the perception service of a process set.
+    Run {
+        /// Service configuration (TOML); see `perception::service::ServiceConfig`.
+        #[arg(long)]
+        config: PathBuf,
+    },
+    /// Fit the hazard classifier on simulated scenarios and report held-out precision/recall.
+    Train(perception::train::TrainArgs),
+    /// Benchmarks.
+    Bench {
+        #[command(subcommand)]
+        which: BenchWhich,
+    },
+}
+
+#[derive(clap::Subcommand)]
+enum BenchWhich {
+    /// Hazard map from a 1280x960 disparity image.
+    Hazard(perception::bench::BenchArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = <Cli as clap::Parser>::parse();
+    let result = match cli.command {
+        Command::Run { config } => run(config),
+        Command::Train(args) => {
+            runtime::logging::init("perception");
+            perception::train::run(&args)
+        }
+        Command::Bench {
+            which: BenchWhich::Hazard(args),
+        } => perception::bench::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(config_path: PathBuf) -> anyhow::Result<()> {
+    let config: ServiceConfig = runtime::config::load(&config_path)?;
+    let model_path = config.model_path(&config_path);
+    // Without a model there is no hazard map: refuse to start rather than publish empty maps.
+    let mut perception = Perception::new(&config, &model_path)
+        .with_context(|| format!("starting with model {}", model_path.display()))?;
+    let mut service = Service::start("perception")?;
+    let disparity = service.subscriber(&topics::DISPARITY)?;
+    let ins = service.subscriber(&topics::INS)?;
+    let mut local_map = service.publisher(&topics::LOCAL_MAP)?;
+    let source = service.name().to_string();
+    let cells = perception.cell_count();
+    tracing::info!(
+        heads = ?config.heads,
+        grid = ?config.grid,
+        model = %model_path.display(),
+        "perception ready"
+    );
+    let deadline = Duration::from_millis(config.frame_deadline_ms);
+    let inputs = [disparity.input(Some(deadline)), ins.input(None)];
+    service.run(&inputs, None, |health, wake| {
+        while let Some(sample) = ins.receive()? {
+            let s = *sample.payload();
+            if let Err(e) = perception.add_ins(s) {
+                health.reject(0, &format!("INS sample {}: {e}", s.hdr.seq));
+            }
+        }
+        if wake != Wake::Input(0) {
+            return Ok(());
+        }
+        // Several heads share the topic: every image of a mapped head gives one local map.
+        while let Some(sample) = disparity.receive()? {
+            let h = sample.user_header();
+            if !perception.accepts(h.head.as_str()) {
+                continue;
+            }
+            let started = Instant::now();
+            let stamp = h.hdr.stamp_ns;
+            let what = || format!("disparity {} of head '{}'", h.frame_seq, h.head.as_str());
+            if let Err(e) = perception.check(h, sample.payload()) {
+                health.reject(stamp, &format!("{}: {e}", what()));
+                continue;
+            }
+            let mut out = local_map.loan_slice(cells)?;
+            let header = Header::new(local_map.next_seq(), stamp, &source);
+            match perception.process(h, sample.payload(), out.payload_mut(), header) {
+                Ok((map_header, summary)) => {
+                    *out.user_header_mut() = map_header;
+                    local_map.send(out)?;
+                    // Water detection (the `water` library) runs here on the same frame and will
+                    // publish `usv/perception/water_mask`; this service does not produce it yet.
+                    tracing::debug!(?summary, "local map");
+                    health.record(stamp, started);
+                }
+                Err(e) => health.reject(stamp, &format!("{}: {e}", what())),
+            }
+        }
+        Ok(())
+    })
+}
