@@ -171,17 +171,19 @@ fn print_summary(o: &Observation, services: &[ServiceStatus], wall: Duration) {
         fmt(percentile(&o.command_latency_ms, 0.5), "ms"),
         fmt(percentile(&o.command_latency_ms, 0.99), "ms"),
     );
+    let mut by_class = std::collections::BTreeMap::<&str, usize>::new();
+    for (class, _) in o.contacts.values() {
+        *by_class
+            .entry(messages::contact_class::name(*class))
+            .or_default() += 1;
+    }
     println!(
-        "hazards: up to {} world-map cells at p >= 0.5; contacts confirmed: {}",
+        "hazards: up to {} world-map cells at p >= 0.5; tracks confirmed during the run: {} ({})",
         o.max_hazard_cells,
-        o.contacts
+        o.contacts.len(),
+        by_class
             .iter()
-            .map(|(id, (class, p))| format!(
-                "#{id} {} at ({:.0}, {:.0})",
-                messages::contact_class::name(*class),
-                p[0],
-                p[1]
-            ))
+            .map(|(class, n)| format!("{n} {class}"))
             .collect::<Vec<_>>()
             .join(", ")
     );

@@ -45,6 +45,9 @@ pub struct RegressArgs {
     /// Give up after this many seconds of wall time.
     #[arg(long, default_value_t = 600)]
     timeout_s: u64,
+    /// Keep the run directory (generated set, configurations, the set's log) for a look after.
+    #[arg(long)]
+    keep: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -93,7 +96,11 @@ pub fn run(args: RegressArgs) -> anyhow::Result<()> {
     } else {
         replay(&config, &scenario, &dir, &work, &args)
     };
-    let _ = std::fs::remove_dir_all(&work);
+    if args.keep {
+        println!("run directory kept: {}", work.display());
+    } else {
+        let _ = std::fs::remove_dir_all(&work);
+    }
     result
 }
 

@@ -1,14 +1,14 @@
-//! `perception run --config FILE`: the perception service. Maps every disparity image of the
-//! configured heads (`usv/stereo/disparity`) into one local hazard map (`usv/perception/local_map`),
-//! with the vessel pose from the INS sample nearest the frame stamp. The disparity stamp is the
-//! primary input reported in the heartbeat.
+//! `perception run --config FILE`: the perception service. Maps the disparity images of the
+//! configured heads (`usv/stereo/disparity`) into one local hazard map per camera frame
+//! (`usv/perception/local_map`; the heads of a frame are merged), with the vessel pose from the INS
+//! sample nearest the frame stamp. The frame stamp is reported in the heartbeat once its map is out.
 //!
 //! `perception train --out FILE`: fits the hazard classifier on rendered scenarios.
 //! `perception bench hazard`: hazard-map time per 1280x960 frame.
 
 use anyhow::Context;
-use messages::{topics, Header};
-use perception::service::{Perception, ServiceConfig};
+use messages::{topics, Header, LocalMapHeader};
+use perception::service::{FrameMerge, Perception, ServiceConfig};
 use runtime::{Service, Wake};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -85,7 +85,28 @@ fn run(config_path: PathBuf) -> anyhow::Result<()> {
     );
     let deadline = Duration::from_millis(config.frame_deadline_ms);
     let inputs = [disparity.input(Some(deadline)), ins.input(None)];
-    service.run(&inputs, None, |health, wake| {
+    let mut frame = FrameMerge::new(&config.heads, cells);
+    let mut frame_started = Instant::now();
+    // A head that does not deliver (its stereo service died) must not hold the frame forever.
+    let head_wait = Duration::from_millis(config.head_wait_ms);
+    let mut publish = |frame: &mut FrameMerge,
+                       started: Instant,
+                       health: &mut runtime::Health|
+     -> anyhow::Result<()> {
+        if let Some((header, merged)) = frame.take() {
+            let mut out = local_map.loan_slice(cells)?;
+            out.payload_mut().copy_from_slice(merged);
+            let stamp = header.hdr.stamp_ns;
+            *out.user_header_mut() = LocalMapHeader {
+                hdr: Header::new(local_map.next_seq(), stamp, &source),
+                ..header
+            };
+            local_map.send(out)?;
+            health.record(stamp, started);
+        }
+        Ok(())
+    };
+    service.run(&inputs, Some(Duration::from_millis(20)), |health, wake| {
         while let Some(sample) = ins.receive()? {
             let s = *sample.payload();
             if let Err(e) = perception.add_ins(s) {
@@ -93,33 +114,43 @@ fn run(config_path: PathBuf) -> anyhow::Result<()> {
             }
         }
         if wake != Wake::Input(0) {
+            if frame.pending_stamp().is_some() && frame_started.elapsed() >= head_wait {
+                publish(&mut frame, frame_started, health)?;
+            }
             return Ok(());
         }
-        // Several heads share the topic: every image of a mapped head gives one local map.
+        // Several heads share the topic: the heads of one frame become one local map.
         while let Some(sample) = disparity.receive()? {
             let h = sample.user_header();
             if !perception.accepts(h.head.as_str()) {
                 continue;
             }
-            let started = Instant::now();
             let stamp = h.hdr.stamp_ns;
             let what = || format!("disparity {} of head '{}'", h.frame_seq, h.head.as_str());
             if let Err(e) = perception.check(h, sample.payload()) {
                 health.reject(stamp, &format!("{}: {e}", what()));
                 continue;
             }
-            let mut out = local_map.loan_slice(cells)?;
-            let header = Header::new(local_map.next_seq(), stamp, &source);
-            match perception.process(h, sample.payload(), out.payload_mut(), header) {
+            if frame.pending_stamp().is_some_and(|p| p != stamp) {
+                // A newer frame began before the last one was complete.
+                publish(&mut frame, frame_started, health)?;
+            }
+            if frame.pending_stamp().is_none() {
+                frame_started = Instant::now();
+            }
+            // Seq and source are set when the merged frame is published; the stamp is the frame's.
+            let header = Header::new(0, stamp, "");
+            match perception.process(h, sample.payload(), &mut frame.scratch, header) {
                 Ok((map_header, summary)) => {
-                    *out.user_header_mut() = map_header;
-                    local_map.send(out)?;
                     // Water detection (the `water` library) runs here on the same frame and will
                     // publish `usv/perception/water_mask`; this service does not produce it yet.
-                    tracing::debug!(?summary, "local map");
-                    health.record(stamp, started);
+                    tracing::debug!(?summary, "local map of one head");
+                    frame.add_scratch(h.head.as_str(), map_header);
                 }
                 Err(e) => health.reject(stamp, &format!("{}: {e}", what())),
+            }
+            if frame.complete() {
+                publish(&mut frame, frame_started, health)?;
             }
         }
         Ok(())

@@ -35,6 +35,10 @@ pub struct ServiceConfig {
     /// one, the stabilized pose's position and heading are used.
     #[serde(default = "default_ins_gap")]
     pub ins_max_gap_ms: u64,
+    /// After the first head of a frame, wait this long for the other heads before publishing the
+    /// frame's map without them (ms, wall clock).
+    #[serde(default = "default_head_wait")]
+    pub head_wait_ms: u64,
     #[serde(default)]
     pub grid: GridConfig,
     #[serde(default)]
@@ -53,6 +57,10 @@ fn default_deadline() -> u64 {
 
 fn default_ins_gap() -> u64 {
     200
+}
+
+fn default_head_wait() -> u64 {
+    1000
 }
 
 impl ServiceConfig {
@@ -213,6 +221,93 @@ impl Perception {
     }
 }
 
+/// One local map per camera frame: the maps of every configured head with the same stamp merged
+/// into one, so the mapper fuses (and the sequencer decides on) each frame once, and a lock-step
+/// source sees the frame done only when all its heads are in the map.
+pub struct FrameMerge {
+    heads: Vec<String>,
+    seen: Vec<bool>,
+    header: Option<LocalMapHeader>,
+    cells: Vec<MapCell>,
+    /// Where the caller maps one head's frame before [`FrameMerge::add_scratch`].
+    pub scratch: Vec<MapCell>,
+}
+
+impl FrameMerge {
+    /// `heads`: the heads a frame is complete with (empty: every map is a frame on its own).
+    pub fn new(heads: &[String], cells: usize) -> Self {
+        Self {
+            heads: heads.to_vec(),
+            seen: vec![false; heads.len()],
+            header: None,
+            cells: vec![MapCell::default(); cells],
+            scratch: vec![MapCell::default(); cells],
+        }
+    }
+
+    /// Stamp of the frame being collected.
+    pub fn pending_stamp(&self) -> Option<u64> {
+        self.header.map(|h| h.hdr.stamp_ns)
+    }
+
+    /// Merges the scratch map of `head` into the frame (which must have the same stamp and grid).
+    pub fn add_scratch(&mut self, head: &str, header: LocalMapHeader) {
+        match &self.header {
+            Some(h) if h.grid == header.grid => {
+                for (acc, new) in self.cells.iter_mut().zip(&self.scratch) {
+                    merge_cell(acc, new);
+                }
+            }
+            // A different grid (the vessel crossed a cell between two INS samples) cannot be merged
+            // cell by cell: the newest head's map stands for the frame.
+            _ => {
+                self.cells.copy_from_slice(&self.scratch);
+                self.header = Some(header);
+            }
+        }
+        if let Some(i) = self.heads.iter().position(|h| h == head) {
+            self.seen[i] = true;
+        }
+    }
+
+    /// Every configured head is in (always true without a head list).
+    pub fn complete(&self) -> bool {
+        self.header.is_some() && self.seen.iter().all(|&s| s)
+    }
+
+    /// The merged frame, and a fresh start for the next one.
+    pub fn take(&mut self) -> Option<(LocalMapHeader, &[MapCell])> {
+        let header = self.header.take()?;
+        self.seen.fill(false);
+        Some((header, &self.cells))
+    }
+}
+
+/// Two observations of one cell: the more hazardous wins, evidence adds up.
+fn merge_cell(acc: &mut MapCell, new: &MapCell) {
+    let unseen = |c: &MapCell| c.cost == MapCell::UNKNOWN_COST && c.observed == 0;
+    if unseen(new) {
+        return;
+    }
+    if unseen(acc) {
+        *acc = *new;
+        return;
+    }
+    // The better-observed head's elevation; ties broken by value so the merge does not depend on
+    // which head arrived first.
+    let elevation = (new.observed, new.elevation_cm)
+        .max((acc.observed, acc.elevation_cm))
+        .1;
+    *acc = MapCell {
+        hazard: acc.hazard.max(new.hazard),
+        cost: acc.cost.max(new.cost),
+        water: acc.water.max(new.water),
+        observed: acc.observed.saturating_add(new.observed),
+        max_height_cm: acc.max_height_cm.max(new.max_height_cm),
+        elevation_cm: elevation,
+    };
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -226,6 +321,37 @@ mod tests {
         assert!(p.accepts("hh_right") && !p.accepts("color"));
         let bad = runtime::config::parse::<ServiceConfig>("model = \"m.json\"\ngird = 3\n", "test");
         assert!(bad.is_err());
+    }
+
+    #[test]
+    fn heads_of_one_frame_merge_into_one_map() {
+        let heads = vec!["hh_left".to_string(), "hh_right".to_string()];
+        let mut merge = FrameMerge::new(&heads, 3);
+        let mut header = LocalMapHeader::default();
+        header.hdr.stamp_ns = 7;
+        let unknown = MapCell {
+            cost: MapCell::UNKNOWN_COST,
+            ..MapCell::default()
+        };
+        let cell = |hazard, observed| MapCell {
+            hazard,
+            cost: hazard / 2,
+            observed,
+            ..MapCell::default()
+        };
+        merge.scratch = vec![cell(200, 3), unknown, cell(10, 1)];
+        merge.add_scratch("hh_left", header);
+        assert!(!merge.complete());
+        assert_eq!(merge.pending_stamp(), Some(7));
+        merge.scratch = vec![cell(20, 2), cell(90, 4), unknown];
+        merge.add_scratch("hh_right", header);
+        assert!(merge.complete());
+        let (h, cells) = merge.take().unwrap();
+        assert_eq!(h.hdr.stamp_ns, 7);
+        assert_eq!((cells[0].hazard, cells[0].observed), (200, 5));
+        assert_eq!(cells[1], cell(90, 4));
+        assert_eq!(cells[2], cell(10, 1));
+        assert!(merge.take().is_none() && !merge.complete());
     }
 
     #[test]
