@@ -280,7 +280,7 @@ impl Observation {
         self.contact_lists += 1;
         for c in contacts.iter().filter(|c| c.confirmed == 1) {
             self.contacts.insert(c.id, (c.class, c.position));
-            if self.contact_lists % 5 == 0 {
+            if self.contact_lists.is_multiple_of(5) {
                 self.contact_trail.push((c.id, c.class, c.position));
             }
         }

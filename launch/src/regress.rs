@@ -142,8 +142,9 @@ fn record(
         lz4: true,
     });
     let written = crate::pipeline::write(&spec, work)?;
-    let session = Session::start(&written.set, work, "regress")?;
-    wait_for_source(session, "sim", args.timeout_s, |_| Ok(()))?;
+    let mut session = Session::start(&written.set, work, "regress")?;
+    wait_for_source(&mut session, "sim", args.timeout_s, |_| Ok(()))?;
+    session.down()?;
     println!(
         "recorded {} ({:.1} MB); now run `usv regress {} --update`",
         file.display(),
@@ -153,9 +154,10 @@ fn record(
     Ok(())
 }
 
-/// Runs a set until its source has stopped, calling `poll` all along; then takes it down.
+/// Runs a set until its source has stopped, calling `poll` all along. The caller takes the set
+/// down once its own nodes are gone (a live node's files would be left in the domain).
 fn wait_for_source(
-    mut session: Session,
+    session: &mut Session,
     source: &str,
     timeout_s: u64,
     mut poll: impl FnMut(&mut Session) -> anyhow::Result<()>,
@@ -164,20 +166,19 @@ fn wait_for_source(
     let mut last_ps = Instant::now();
     loop {
         session.check_alive()?;
-        poll(&mut session)?;
+        poll(session)?;
         if last_ps.elapsed() > Duration::from_millis(300) {
             last_ps = Instant::now();
             if has_stopped(&session.ps()?, source) {
                 // Outputs of the last frame are still on their way.
                 std::thread::sleep(Duration::from_millis(500));
-                poll(&mut session)?;
-                break;
+                poll(session)?;
+                return Ok(());
             }
         }
         anyhow::ensure!(Instant::now() < deadline, "the run did not finish in time");
         std::thread::sleep(Duration::from_millis(2));
     }
-    session.down()
 }
 
 fn replay(
@@ -196,7 +197,7 @@ fn replay(
     );
     let spec = spec(config, scenario, Source::Replay { file });
     let written = crate::pipeline::write(&spec, work)?;
-    let session = Session::start(&written.set, work, "regress")?;
+    let mut session = Session::start(&written.set, work, "regress")?;
     let mut got = Expectations::default();
     {
         let node = runtime::tool_node("usv-regress")?;
@@ -205,7 +206,7 @@ fn replay(
         let world_map = topics::WORLD_MAP.subscriber(&node)?;
         let contacts = topics::CONTACTS.subscriber(&node)?;
         let commands = topics::ACTUATOR_COMMAND.subscriber(&node)?;
-        wait_for_source(session, "sensors", args.timeout_s, |_| {
+        wait_for_source(&mut session, "sensors", args.timeout_s, |_| {
             let frames = &mut got.frames;
             while let Some(s) = disparity.receive()? {
                 let h = s.user_header();
@@ -248,6 +249,7 @@ fn replay(
             Ok(())
         })?;
     }
+    session.down()?;
     // Commands also follow INS samples between frames; only frames with a disparity are frames.
     got.frames.retain(|_, d| !d.disparity.is_empty());
     let expected_file = dir.join("expected.json");
@@ -436,7 +438,8 @@ mod tests {
     #[test]
     fn behaviour_changes_are_caught() {
         let e = one(digest());
-        let changes: Vec<Box<dyn Fn(&mut FrameDigest)>> = vec![
+        type Change = Box<dyn Fn(&mut FrameDigest)>;
+        let changes: Vec<Change> = vec![
             Box::new(|d| d.command = Some((-0.2, 40.0, 1))),
             Box::new(|d| d.command = Some((0.1, 40.0, 2))),
             Box::new(|d| d.contacts = Some(vec![])),
