@@ -28,6 +28,8 @@ fn eval(args: &[&str]) -> Value {
     let out = Command::new(bin("usv"))
         // Not "run by cargo": the test already built every program, usv must not build again.
         .env_remove("CARGO")
+        // usv finds the services' configurations (launch/sets/) in the checkout it runs in.
+        .current_dir(checkout())
         .arg("eval")
         .args(args)
         .args(["--json", "--out"])
@@ -171,6 +173,7 @@ fn replayed_recording_gives_the_committed_outputs() {
     let dir = checkout().join("tests/data/replay");
     let out = Command::new(bin("usv"))
         .env_remove("CARGO")
+        .current_dir(checkout())
         .arg("regress")
         .arg(&dir)
         .output()
