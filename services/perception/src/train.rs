@@ -188,7 +188,7 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
             oversize: 1.0,
         };
         calib.validate()?;
-        // The demo's stereo settings (launch/sets/stereo-hh_left.toml). 128 px of disparity
+        // The stereo settings of the simulated sets (launch/src/pipeline.rs). 128 px of disparity
         // reach water about 4.5 m from a 640-wide head; fewer leave the lowest rows mismatched.
         let mut search = PlaneSearch {
             lower_fraction: 0.35,
