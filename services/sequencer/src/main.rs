@@ -158,7 +158,12 @@ fn run(config: PathBuf, mission: Option<PathBuf>) -> anyhow::Result<()> {
             }
             while let Some(sample) = ins.receive()? {
                 match seq.on_ins(sample.payload()) {
-                    Ok(()) => cycle |= cfg.cycle_on == CycleOn::Ins,
+                    // One cycle per sample, however the samples were batched into wake-ups: the
+                    // controller's rate limits and integrators then see the same steps every run.
+                    Ok(()) if cfg.cycle_on == CycleOn::Ins => {
+                        run_cycle(&mut seq, &source, &mut commands, &mut statuses)?
+                    }
+                    Ok(()) => {}
                     // Stamp 0: an INS sample must not advance the map stamp lock-step sources read.
                     Err(e) => health.reject(0, &e.to_string()),
                 }
@@ -194,11 +199,7 @@ fn run(config: PathBuf, mission: Option<PathBuf>) -> anyhow::Result<()> {
                 serve(&server, &mut seq)?;
             }
             if cycle {
-                let (mut command, mut status) = seq.cycle(&source);
-                command.hdr.seq = commands.next_seq();
-                commands.publish(&command)?;
-                status.hdr.seq = statuses.next_seq();
-                statuses.publish(&status)?;
+                run_cycle(&mut seq, &source, &mut commands, &mut statuses)?;
             }
             if let Some(stamp) = map_stamp {
                 health.record(stamp, started);
@@ -206,4 +207,19 @@ fn run(config: PathBuf, mission: Option<PathBuf>) -> anyhow::Result<()> {
             Ok(())
         },
     )
+}
+
+/// One sequencer cycle: decide, then publish the command and the status.
+fn run_cycle(
+    seq: &mut Sequencer,
+    source: &str,
+    commands: &mut runtime::Publisher<messages::ActuatorCommand, ()>,
+    statuses: &mut runtime::Publisher<messages::SequencerStatus, ()>,
+) -> anyhow::Result<()> {
+    let (mut command, mut status) = seq.cycle(source);
+    command.hdr.seq = commands.next_seq();
+    commands.publish(&command)?;
+    status.hdr.seq = statuses.next_seq();
+    statuses.publish(&status)?;
+    Ok(())
 }
