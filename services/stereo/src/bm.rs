@@ -1077,6 +1077,17 @@ unsafe fn col_update_avx2<const V: usize>(col: &mut [u16], l: [&[u8]; 2], r: [&[
     }
 }
 
+/// `NEAR[NEAR_AT + 1 - d + k]` is u16::MAX exactly for k in d-1..=d+1 (any d < 128, k < 128):
+/// the lanes the uniqueness test skips.
+const NEAR_AT: usize = 128;
+static NEAR: [u16; 2 * NEAR_AT + 16] = {
+    let mut a = [0u16; 2 * NEAR_AT + 16];
+    a[NEAR_AT] = u16::MAX;
+    a[NEAR_AT + 1] = u16::MAX;
+    a[NEAR_AT + 2] = u16::MAX;
+    a
+};
+
 /// `tile_row_scalar` with the window's costs held in `V` registers across the row: the slide,
 /// argmin, right-image minima and second minimum never leave them; they are stored only for the
 /// subpixel step of a pixel that passed every check (or for the rare pixel at the left border).
@@ -1091,7 +1102,7 @@ unsafe fn tile_row_avx2<const V: usize>(
     tmp: &mut [u16],
 ) {
     let (len, r, w) = (16 * V, c.r, c.w);
-    assert!(c.len == len && sad.len() == len && tmp.len() >= len);
+    assert!(V <= 8 && c.len == len && sad.len() == len && tmp.len() >= len);
     assert!(col.len() >= (c.xb - c.cx0 + r) * len && c.xa >= c.cx0 + r);
     assert!(c.tex.len() >= c.xb && o.out.len() >= c.xb && o.best.len() >= c.xb);
     // Right-image minima are read at w - 1 - xc + first + k, xc >= xa, k < len.
@@ -1104,9 +1115,12 @@ unsafe fn tile_row_avx2<const V: usize>(
             *sv = _mm256_add_epi16(*sv, load(cp.add(i * len + 16 * v)));
         }
     }
+    // Absolute disparities of each lane, recorded with the right-image minima.
     let lanes = _mm256_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-    let first = _mm256_set1_epi16(c.first as i16);
-    let sixteen = _mm256_set1_epi16(16);
+    let mut idxs = [_mm256_setzero_si256(); V];
+    for (v, idx) in idxs.iter_mut().enumerate() {
+        *idx = _mm256_add_epi16(lanes, _mm256_set1_epi16((c.first + 16 * v) as i16));
+    }
     for xc in c.xa..c.xb {
         let i = xc - c.cx0;
         if xc > c.xa {
@@ -1137,43 +1151,39 @@ unsafe fn tile_row_avx2<const V: usize>(
             }
             continue;
         }
-        // Argmin (ties: smaller d) and right-image minima, as in `argmin_lr_avx2`.
+        // Right-image minima (ties keep the smaller d, as in `argmin_lr_avx2`) and the minimum.
         let (mrp, mdp) = (o.mr.as_mut_ptr().add(j), o.md.as_mut_ptr().add(j));
-        let mut bv = _mm256_set1_epi16(-1);
-        let mut bd = first;
-        let mut idx = _mm256_add_epi16(lanes, first);
-        for (v, &x) in s.iter().enumerate() {
-            let nb = _mm256_min_epu16(x, bv);
-            bd = _mm256_blendv_epi8(idx, bd, _mm256_cmpeq_epi16(nb, bv));
-            bv = nb;
+        let mut m = s[0];
+        for (v, (&x, &idx)) in s.iter().zip(&idxs).enumerate() {
+            m = _mm256_min_epu16(m, x);
             let rv = load(mrp.add(16 * v));
             let nr = _mm256_min_epu16(x, rv);
             _mm256_storeu_si256(mrp.add(16 * v) as *mut __m256i, nr);
             let mv = load(mdp.add(16 * v));
             let md = _mm256_blendv_epi8(idx, mv, _mm256_cmpeq_epi16(nr, rv));
             _mm256_storeu_si256(mdp.add(16 * v) as *mut __m256i, md);
-            idx = _mm256_add_epi16(idx, sixteen);
         }
         if (c.tex[xc] as u32) < c.texture_threshold {
             continue;
         }
-        let v8 = _mm_min_epu16(_mm256_castsi256_si128(bv), _mm256_extracti128_si256(bv, 1));
-        let min = _mm_extract_epi16(_mm_minpos_epu16(v8), 0) as u16;
-        let hit = _mm256_cmpeq_epi16(bv, _mm256_set1_epi16(min as i16));
-        let ds = _mm256_blendv_epi8(_mm256_set1_epi16(-1), bd, hit);
-        let d8 = _mm_min_epu16(_mm256_castsi256_si128(ds), _mm256_extracti128_si256(ds, 1));
-        let d_abs = _mm_extract_epi16(_mm_minpos_epu16(d8), 0) as usize;
+        let m8 = _mm_min_epu16(_mm256_castsi256_si128(m), _mm256_extracti128_si256(m, 1));
+        let min = _mm_extract_epi16(_mm_minpos_epu16(m8), 0) as u16;
+        // Smallest d holding the minimum: first vector with a hit, lowest lane (2 mask bits each).
+        let minv = _mm256_set1_epi16(min as i16);
+        let mut d = 0;
+        for (v, &x) in s.iter().enumerate() {
+            let hits = _mm256_movemask_epi8(_mm256_cmpeq_epi16(x, minv)) as u32;
+            if hits != 0 {
+                d = 16 * v + hits.trailing_zeros() as usize / 2;
+                break;
+            }
+        }
         if c.uniqueness_ratio > 0 {
-            // Second minimum over d outside d_abs-1..=d_abs+1 (unsigned d - (d_abs-1) <= 2).
-            let lo = _mm256_set1_epi16(d_abs as i16 - 1);
-            let two = _mm256_set1_epi16(2);
-            let mut idx = _mm256_add_epi16(lanes, first);
+            // Second minimum over d outside d-1..=d+1: those lanes are masked to u16::MAX.
+            let near = NEAR.as_ptr().add(NEAR_AT + 1 - d);
             let mut m2 = _mm256_set1_epi16(-1);
-            for &x in &s {
-                let rel = _mm256_sub_epi16(idx, lo);
-                let near = _mm256_cmpeq_epi16(_mm256_min_epu16(rel, two), rel);
-                m2 = _mm256_min_epu16(m2, _mm256_or_si256(x, near));
-                idx = _mm256_add_epi16(idx, sixteen);
+            for (v, &x) in s.iter().enumerate() {
+                m2 = _mm256_min_epu16(m2, _mm256_or_si256(x, load(near.add(16 * v))));
             }
             let m8 = _mm_min_epu16(_mm256_castsi256_si128(m2), _mm256_extracti128_si256(m2, 1));
             let second = _mm_extract_epi16(_mm_minpos_epu16(m8), 0) as u32;
@@ -1185,6 +1195,6 @@ unsafe fn tile_row_avx2<const V: usize>(
         for (v, sv) in s.iter().enumerate() {
             _mm256_storeu_si256(sad.as_mut_ptr().add(16 * v) as *mut __m256i, *sv);
         }
-        finish_pixel(sad, c, o, xc, dmax, top, d_abs - c.first);
+        finish_pixel(sad, c, o, xc, dmax, top, d);
     }
 }
