@@ -157,7 +157,8 @@ impl DisparityMatcher for BlockMatcher {
         check_frame(want, &left, &right, out)?;
         let p = &self.params;
         let Some(c) = &mut self.coarse else {
-            self.full.run(left.data(), right.data(), p, &mut out.data, None);
+            self.full
+                .run(left.data(), right.data(), p, &mut out.data, None);
             return Ok(());
         };
         // Half scale first: its disparities bound the full-scale search and filter its result.
@@ -241,7 +242,12 @@ impl<'a> RowFilter<'a> {
         let v = v as i32;
         // Branch-free: which neighbours are valid is unpredictable.
         let (mut any_valid, mut ok) = (false, false);
-        for c in [self.above[xa], self.above[xb], self.below[xa], self.below[xb]] {
+        for c in [
+            self.above[xa],
+            self.above[xb],
+            self.below[xa],
+            self.below[xb],
+        ] {
             let valid = c >= 0;
             any_valid |= valid;
             ok |= valid & ((v - 2 * c as i32).abs() <= self.tol);
@@ -343,7 +349,8 @@ impl Guide<'_> {
         // Half-scale values are in 1/16 half-scale pixels: full-scale pixels are 2 c / 16.
         let s = DISP_SCALE as i32;
         let lo = (2 * lo as i32 / s - self.margin).clamp(0, nd as i32 - 1) as usize;
-        let hi = ((2 * hi as i32 + s - 1) / s + self.margin).clamp(lo as i32, nd as i32 - 1) as usize;
+        let hi =
+            ((2 * hi as i32 + s - 1) / s + self.margin).clamp(lo as i32, nd as i32 - 1) as usize;
         let span = hi + 1 - lo;
         let len = span.div_ceil(16) * 16;
         let first = lo.saturating_sub((len - span) / 2).min(nd - len);
@@ -427,7 +434,10 @@ impl Level {
             tex: &self.tex,
         };
         if let Some(g) = guide {
-            assert!(!self.tile_bands.is_empty(), "level built without tile scratch");
+            assert!(
+                !self.tile_bands.is_empty(),
+                "level built without tile scratch"
+            );
             let band_rows = h.div_ceil(TILE_H).div_ceil(TILE_BANDS) * TILE_H;
             out.par_chunks_mut(band_rows * w)
                 .zip(self.tile_bands.par_iter_mut())
@@ -1196,5 +1206,216 @@ unsafe fn tile_row_avx2<const V: usize>(
             _mm256_storeu_si256(sad.as_mut_ptr().add(16 * v) as *mut __m256i, *sv);
         }
         finish_pixel(sad, c, o, xc, dmax, top, d);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simd::{FORCE_SCALAR, REFERENCE_ROWS};
+    use std::sync::atomic::Ordering::Relaxed;
+    use std::sync::Mutex;
+
+    /// The path switches are process-wide: tests that flip them take turns.
+    static SWITCHES: Mutex<()> = Mutex::new(());
+
+    fn xorshift(s: &mut u64) -> u64 {
+        *s ^= *s << 13;
+        *s ^= *s >> 7;
+        *s ^= *s << 17;
+        *s
+    }
+
+    /// Random texture (smoothed a little so the x-Sobel is not saturated everywhere) seen with a
+    /// disparity that steps between regions (occlusions, depth edges), noise, and a flat patch
+    /// (texture check). The disparity is defined on the right image: R(x) = L(x + d(x)).
+    fn pair(w: usize, h: usize, nd: usize, seed: u64) -> (Vec<u8>, Vec<u8>) {
+        let mut s = seed;
+        let wide = w + nd;
+        let noise: Vec<u8> = (0..wide * h)
+            .map(|_| (xorshift(&mut s) >> 56) as u8)
+            .collect();
+        let tex = |x: usize, y: usize| {
+            let a = noise[y * wide + x] as u16 + noise[y * wide + (x + 1).min(wide - 1)] as u16;
+            (a / 2) as u8
+        };
+        let disp = |x: usize, y: usize| {
+            let d = 3 + (x * 7 / w) * (nd / 9) + (y * 3 / h) * 2;
+            d.min(nd - 1)
+        };
+        let mut l = vec![0u8; w * h];
+        let mut r = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let n = (xorshift(&mut s) >> 61) as u8;
+                l[y * w + x] = tex(x, y).saturating_add(n);
+                r[y * w + x] = tex(x + disp(x, y), y);
+            }
+        }
+        for y in h / 3..h / 2 {
+            for x in w / 3..w / 2 {
+                l[y * w + x] = 120;
+                r[y * w + x] = 120;
+            }
+        }
+        (l, r)
+    }
+
+    fn params(nd: usize, block_size: usize) -> BmParams {
+        BmParams {
+            num_disparities: nd,
+            block_size,
+            ..Default::default()
+        }
+    }
+
+    fn run_level(
+        l: &[u8],
+        r: &[u8],
+        w: usize,
+        h: usize,
+        p: &BmParams,
+        g: Option<&Guide>,
+    ) -> Vec<i16> {
+        let mut level = Level::new(w, h, p.num_disparities, p.block_size / 2, g.is_some());
+        let mut out = vec![0; w * h];
+        level.run(l, r, p, &mut out, g);
+        out
+    }
+
+    fn with_switches<T>(scalar: bool, reference: bool, f: impl FnOnce() -> T) -> T {
+        FORCE_SCALAR.store(scalar, Relaxed);
+        REFERENCE_ROWS.store(reference, Relaxed);
+        let t = f();
+        FORCE_SCALAR.store(false, Relaxed);
+        REFERENCE_ROWS.store(false, Relaxed);
+        t
+    }
+
+    /// Sizes and ranges that hit every vector count of the row kernel (1..=8 and the fallback
+    /// past 8), the left-border partial windows and bands shorter than the window.
+    const CASES: [(usize, usize, usize, usize); 6] = [
+        (97, 41, 16, 9),
+        (130, 60, 48, 5),
+        (160, 37, 64, 9),
+        (203, 75, 128, 7),
+        (240, 50, 144, 9),
+        (64, 24, 32, 3),
+    ];
+
+    #[test]
+    fn full_search_kernels_equal_reference() {
+        let _g = SWITCHES.lock().unwrap_or_else(|e| e.into_inner());
+        for (i, &(w, h, nd, bs)) in CASES.iter().enumerate() {
+            let (l, r) = pair(w, h, nd, 7 + i as u64);
+            let p = params(nd, bs);
+            let reference = with_switches(true, true, || run_level(&l, &r, w, h, &p, None));
+            let valid = reference.iter().filter(|&&v| v >= 0).count();
+            println!("case {i}: {valid} of {} valid", w * h);
+            assert!(valid > w * h / 3, "case {i}: only {valid} valid pixels");
+            for (scalar, refrows) in [(false, false), (true, false), (false, true)] {
+                let got = with_switches(scalar, refrows, || run_level(&l, &r, w, h, &p, None));
+                assert!(
+                    got == reference,
+                    "case {i}, scalar {scalar}, reference rows {refrows}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn tiles_with_full_windows_equal_full_search() {
+        let _g = SWITCHES.lock().unwrap_or_else(|e| e.into_inner());
+        for (i, &(w, h, nd, bs)) in CASES.iter().enumerate() {
+            let (l, r) = pair(w, h, nd, 11 + i as u64);
+            // No half-scale match anywhere: every tile searches 0..nd. No multiscale filter.
+            let p = BmParams {
+                multiscale_max_diff: -1.0,
+                ..params(nd, bs)
+            };
+            let coarse = vec![INVALID; (w / 2) * (h / 2)];
+            let g = Guide {
+                disp: &coarse,
+                w2: w / 2,
+                h2: h / 2,
+                margin: 4,
+            };
+            let reference = with_switches(true, true, || run_level(&l, &r, w, h, &p, None));
+            for scalar in [false, true] {
+                let got = with_switches(scalar, false, || run_level(&l, &r, w, h, &p, Some(&g)));
+                assert!(got == reference, "case {i}, scalar {scalar}");
+            }
+        }
+    }
+
+    #[test]
+    fn narrowed_windows_agree_between_scalar_and_avx2() {
+        let _g = SWITCHES.lock().unwrap_or_else(|e| e.into_inner());
+        for (i, &(w, h, nd, bs)) in CASES.iter().enumerate() {
+            let (l, r) = pair(w, h, nd, 13 + i as u64);
+            let p = params(nd, bs);
+            let mut m = BlockMatcher::new(p, w, h).unwrap();
+            let (lv, rv) = (
+                GrayView::new(w, h, &l).unwrap(),
+                GrayView::new(w, h, &r).unwrap(),
+            );
+            let mut run = |scalar| {
+                let mut out = DisparityMap::new(w, h);
+                with_switches(scalar, false, || m.compute(lv, rv, &mut out)).unwrap();
+                out
+            };
+            let (fast, slow) = (run(false), run(true));
+            assert!(fast.density() > 0.3, "case {i}: density {}", fast.density());
+            // The half scale matched enough for many tiles to get a narrowed window.
+            let coarse = &m.coarse.as_ref().unwrap().disp;
+            let matched = coarse.iter().filter(|&&v| v >= 0).count();
+            assert!(matched > coarse.len() / 4, "case {i}: coarse {matched}");
+            assert!(fast == slow, "case {i}");
+        }
+    }
+
+    #[test]
+    fn windows_cover_twice_the_coarse_range() {
+        let (w2, h2, nd) = (40, 20, 128);
+        let mut coarse = vec![INVALID; w2 * h2];
+        // Half-scale 10.5 and 13 px under full-scale columns 32..64, rows 16..32.
+        coarse[8 * w2 + 16] = 168;
+        coarse[15 * w2 + 31] = 208;
+        let g = Guide {
+            disp: &coarse,
+            w2,
+            h2,
+            margin: 4,
+        };
+        let (first, len) = g.window(32, 64, 16, 32, nd);
+        assert_eq!(len % 16, 0);
+        assert!(first <= 21 - 4 && first + len > 26 + 4, "{first} {len}");
+        assert!(len <= 32, "{len}");
+        // Nothing matched under the tile: the whole range.
+        assert_eq!(g.window(0, 32, 0, 16, nd), (0, nd));
+        // Near the top of the range the window stays inside it.
+        let mut top = coarse.clone();
+        top[0] = 63 * 16;
+        let g = Guide { disp: &top, ..g };
+        let (first, len) = g.window(0, 32, 0, 16, nd);
+        assert!(first + len == nd && first <= 126 - 4, "{first} {len}");
+    }
+
+    #[test]
+    fn argmin_from_offset_matches_scalar() {
+        let _g = SWITCHES.lock().unwrap_or_else(|e| e.into_inner());
+        let mut s = 5u64;
+        for n in [16usize, 32, 64, 128] {
+            for base in [0u16, 3, 40] {
+                let costs: Vec<u16> = (0..n).map(|_| (xorshift(&mut s) % 50) as u16).collect();
+                let mut mr: Vec<u16> = (0..n).map(|_| (xorshift(&mut s) % 60) as u16).collect();
+                let mut md = vec![7u16; n];
+                let (mut mr2, mut md2) = (mr.clone(), md.clone());
+                let (mut c1, mut c2) = (costs.clone(), costs.clone());
+                let a = argmin_lr_from(&mut c1, None, &mut mr, &mut md, base);
+                let b = crate::disparity::argmin_lr_scalar(&mut c2, None, &mut mr2, &mut md2, base);
+                assert_eq!((a, &mr, &md), (b, &mr2, &md2), "n {n} base {base}");
+            }
+        }
     }
 }
