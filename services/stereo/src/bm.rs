@@ -408,10 +408,10 @@ impl Level {
         self.lp
             .par_chunks_mut(w)
             .enumerate()
-            .for_each(|(y, row)| prefilter_row(left, w, h, y, cap, row));
+            .for_each(|(y, row)| prefilter_row_fast(left, w, h, y, cap, row));
         self.rp.par_chunks_mut(rs).enumerate().for_each(|(y, row)| {
             let (img, pad) = row.split_at_mut(w);
-            prefilter_row(right, w, h, y, cap, img);
+            prefilter_row_fast(right, w, h, y, cap, img);
             img.reverse();
             pad.fill(cap);
         });
@@ -458,6 +458,8 @@ impl Level {
     }
 }
 
+dispatch_avx2!(fn prefilter_row_fast<'a, 'b>(img: &'a [u8], w: usize, h: usize, y: usize, cap: u8, out: &'b mut [u8]) => prefilter_row);
+
 /// x-Sobel (3x3, replicated border) clipped to [-cap, cap] and shifted to [0, 2 cap].
 #[inline(always)]
 fn prefilter_row(img: &[u8], w: usize, h: usize, y: usize, cap: u8, out: &mut [u8]) {
@@ -499,40 +501,54 @@ fn texture_sums(
     tex: &mut [u16],
     col: &mut [u16],
 ) {
-    let t = |v: u8| (v as i16 - cap as i16).unsigned_abs();
     let band_rows = h.div_ceil(col.len() / w);
     tex.par_chunks_mut(band_rows * w)
         .zip(col.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(b, (tex, col))| {
-            tex.fill(0);
-            let y0 = b * band_rows;
-            let (ys, ye) = (y0.max(r), (y0 + tex.len() / w).min(h - r));
-            if ys >= ye {
-                return;
+        .for_each(|(b, (tex, col))| texture_band(lp, w, h, r, cap, b * band_rows, tex, col));
+}
+
+dispatch_avx2!(fn texture_band<'a, 'b>(lp: &'a [u8], w: usize, h: usize, r: usize, cap: u8, y0: usize, tex: &'b mut [u16], col: &'b mut [u16]) => texture_band_impl);
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn texture_band_impl(
+    lp: &[u8],
+    w: usize,
+    h: usize,
+    r: usize,
+    cap: u8,
+    y0: usize,
+    tex: &mut [u16],
+    col: &mut [u16],
+) {
+    let t = |v: u8| (v as i16 - cap as i16).unsigned_abs();
+    tex.fill(0);
+    let (ys, ye) = (y0.max(r), (y0 + tex.len() / w).min(h - r));
+    if ys >= ye {
+        return;
+    }
+    col.fill(0);
+    for y in ys - r..=ys + r {
+        for (c, &v) in col.iter_mut().zip(&lp[y * w..(y + 1) * w]) {
+            *c += t(v);
+        }
+    }
+    for y in ys..ye {
+        if y > ys {
+            let (add, sub) = (&lp[(y + r) * w..][..w], &lp[(y - r - 1) * w..][..w]);
+            for x in 0..w {
+                col[x] = col[x] + t(add[x]) - t(sub[x]);
             }
-            col.fill(0);
-            for y in ys - r..=ys + r {
-                for (c, &v) in col.iter_mut().zip(&lp[y * w..(y + 1) * w]) {
-                    *c += t(v);
-                }
-            }
-            for y in ys..ye {
-                if y > ys {
-                    let (add, sub) = (&lp[(y + r) * w..][..w], &lp[(y - r - 1) * w..][..w]);
-                    for x in 0..w {
-                        col[x] = col[x] + t(add[x]) - t(sub[x]);
-                    }
-                }
-                let row = &mut tex[(y - y0) * w..][..w];
-                let mut s: u16 = col[..2 * r + 1].iter().sum();
-                row[r] = s;
-                for x in r + 1..w - r {
-                    s = s + col[x + r] - col[x - r - 1];
-                    row[x] = s;
-                }
-            }
-        });
+        }
+        let row = &mut tex[(y - y0) * w..][..w];
+        let mut s: u16 = col[..2 * r + 1].iter().sum();
+        row[r] = s;
+        for x in r + 1..w - r {
+            s = s + col[x + r] - col[x - r - 1];
+            row[x] = s;
+        }
+    }
 }
 
 struct LevelInput<'a> {
