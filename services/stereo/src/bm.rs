@@ -508,7 +508,7 @@ fn texture_sums(
         .for_each(|(b, (tex, col))| texture_band(lp, w, h, r, cap, b * band_rows, tex, col));
 }
 
-dispatch_avx2!(fn texture_band<'a, 'b>(lp: &'a [u8], w: usize, h: usize, r: usize, cap: u8, y0: usize, tex: &'b mut [u16], col: &'b mut [u16]) => texture_band_impl);
+dispatch_avx2!(#[allow(clippy::too_many_arguments)] fn texture_band<'a, 'b>(lp: &'a [u8], w: usize, h: usize, r: usize, cap: u8, y0: usize, tex: &'b mut [u16], col: &'b mut [u16]) => texture_band_impl);
 
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
@@ -1107,9 +1107,9 @@ unsafe fn col_update_avx2<const V: usize>(col: &mut [u16], l: [&[u8]; 2], r: [&[
     assert!(l[1].len() == nc && col.len() >= nc * 16 * V);
     assert!(r[0].len() >= nc - 1 + 16 * V && r[1].len() >= nc - 1 + 16 * V);
     let (cp, rn, ro) = (col.as_mut_ptr(), r[0].as_ptr(), r[1].as_ptr());
-    for i in 0..nc {
-        let a = _mm256_set1_epi16(l[0][i] as i16);
-        let b = _mm256_set1_epi16(l[1][i] as i16);
+    for (i, (&a, &b)) in l[0].iter().zip(l[1]).enumerate() {
+        let a = _mm256_set1_epi16(a as i16);
+        let b = _mm256_set1_epi16(b as i16);
         let (c, rn, ro) = (cp.add(i * 16 * V), rn.add(nc - 1 - i), ro.add(nc - 1 - i));
         for v in 0..V {
             let n = _mm256_cvtepu8_epi16(_mm_loadu_si128(rn.add(16 * v) as *const __m128i));

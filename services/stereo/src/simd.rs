@@ -4,10 +4,12 @@
 //! `#[inline(always)]` to be compiled inside the AVX2 copy.
 
 macro_rules! dispatch_avx2 {
-    ($vis:vis fn $name:ident $(<$($lt:lifetime),*>)? ($($arg:ident : $ty:ty),* $(,)?) => $imp:path) => {
+    ($(#[$m:meta])* $vis:vis fn $name:ident $(<$($lt:lifetime),*>)? ($($arg:ident : $ty:ty),* $(,)?) => $imp:path) => {
+        $(#[$m])*
         $vis fn $name $(<$($lt),*>)? ($($arg: $ty),*) {
             #[cfg(target_arch = "x86_64")]
             {
+                $(#[$m])*
                 #[target_feature(enable = "avx2,popcnt,bmi1,bmi2")]
                 unsafe fn avx2 $(<$($lt),*>)? ($($arg: $ty),*) {
                     $imp($($arg),*)
