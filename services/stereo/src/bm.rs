@@ -760,21 +760,52 @@ fn match_band_tiled_impl(
             if xa >= xb {
                 continue;
             }
-            let (first, len) = g.window(xa, xb, ya, yb, nd);
-            let uniqueness_ratio = if len == nd {
-                p.uniqueness_ratio
+            let window = g.window(xa, xb, ya, yb, nd);
+            // A wide window usually means a depth edge crosses the tile: its quarters, each on
+            // one side of the edge more often than not, are searched over their own windows
+            // when that saves enough lanes to pay for their extra column sums. Left before right
+            // within each row keeps the right-image minima in the full search's order.
+            let (xm, ym) = ((xa + xb) / 2, (ya + yb) / 2);
+            let quarters = [
+                (ya, ym, xa, xm),
+                (ya, ym, xm, xb),
+                (ym, yb, xa, xm),
+                (ym, yb, xm, xb),
+            ];
+            let split = window.1 > 32 && xm > xa && ym > ya && {
+                let lanes: usize = quarters
+                    .iter()
+                    .map(|&(y0, y1, x0, x1)| g.window(x0, x1, y0, y1, nd).1)
+                    .sum();
+                2 * lanes < 4 * window.1
+            };
+            let parts: &[(usize, usize, usize, usize)] = if split {
+                &quarters
             } else {
-                p.refine_uniqueness_ratio
+                &[(ya, yb, xa, xb)]
             };
-            let tile = Tile {
-                ya,
-                yb,
-                xa,
-                xb,
-                first,
-                uniqueness_ratio,
-            };
-            match_tile(inp, p, g, &tile, len, y0, out, s);
+            for &(ty0, ty1, tx0, tx1) in parts {
+                let (first, len) = if split {
+                    g.window(tx0, tx1, ty0, ty1, nd)
+                } else {
+                    window
+                };
+                let uniqueness_ratio = if len == nd {
+                    p.uniqueness_ratio
+                } else {
+                    p.refine_uniqueness_ratio
+                };
+                let tile = Tile {
+                    strip: ya,
+                    ya: ty0,
+                    yb: ty1,
+                    xa: tx0,
+                    xb: tx1,
+                    first,
+                    uniqueness_ratio,
+                };
+                match_tile(inp, p, g, &tile, len, y0, out, s);
+            }
         }
         for y in ya..yb {
             let i = y - ya;
@@ -790,6 +821,8 @@ fn match_band_tiled_impl(
 
 /// Full-scale pixels `xa..xb` x `ya..yb` searched over disparities `first..first + len`.
 struct Tile {
+    /// First row of the strip (the rows of `TileBand::best`, `mr`, `md`).
+    strip: usize,
     ya: usize,
     yb: usize,
     xa: usize,
@@ -864,7 +897,7 @@ fn match_tile(
                 vectors,
             );
         }
-        let row = y - t.ya;
+        let row = y - t.strip;
         let ctx = RowCtx {
             w,
             nd,
