@@ -10,6 +10,14 @@
 //! (one column added, one removed per pixel). Disparity is the innermost, contiguous axis, so every
 //! step is a straight loop over `d` that LLVM turns into 16-lane u16 vector code. The right image
 //! is stored mirrored so that `R(x - d)` is also contiguous and increasing in `d`.
+//!
+//! Coarse-to-fine (`refine_margin >= 0`, the default): the half-scale match that the multiscale
+//! filter needs anyway runs first, over the full range, and bounds the full-scale search: each
+//! 32x16 tile is matched only over twice the range of the half-scale disparities under it plus a
+//! margin (`Guide::window`), with its own column sums; tiles without a half-scale match get the
+//! full range. The row kernel (`tile_row_avx2`) keeps the window's costs in registers across the
+//! row. The left-right check uses the right-image minima of the costs computed in the same pass,
+//! and the multiscale filter is applied as each pixel is written.
 
 use rayon::prelude::*;
 use serde::Deserialize;
