@@ -16,8 +16,8 @@ pub struct DemoArgs {
     /// Scenario (default: services/sim/scenarios/open_water_crossing.toml of this checkout).
     #[arg(long)]
     scenario: Option<PathBuf>,
-    /// Scenario time to run (s).
-    #[arg(long, default_value_t = 20.0)]
+    /// Scenario time to run (s). 30 s include the crossing boat's closest approach.
+    #[arg(long, default_value_t = 30.0)]
     duration: f64,
     /// Resolution of the stereo heads as a fraction of the scenario's (1.0 = 1280x960 maritime heads).
     #[arg(long, default_value_t = 0.5)]

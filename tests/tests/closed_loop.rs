@@ -101,9 +101,9 @@ fn open_water_crossing_closed_loop_runs_the_whole_stack_and_keeps_clear_of_the_b
 }
 
 /// The target behaviour that is not met yet: the arcs avoid what the map holds, but nothing predicts
-/// where the crossing boat will be, and the boat meets it at about 24.6 s.
+/// where the crossing boat will be, and the boat meets it at about 21 s.
 #[test]
-#[ignore = "fails today: the crossing boat is not avoided (collision at ~24.6 s)"]
+#[ignore = "fails today: the crossing boat is not avoided (collision at ~21 s)"]
 fn crossing_boat_is_avoided() {
     let _guard = serial();
     let r = eval(&[

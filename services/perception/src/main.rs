@@ -28,6 +28,9 @@ enum Command {
         /// Service configuration (TOML); see `perception::service::ServiceConfig`.
         #[arg(long)]
         config: PathBuf,
+        /// The heads of a frame, overriding the configuration's `heads` (a set knows its heads).
+        #[arg(long, value_delimiter = ',')]
+        heads: Vec<String>,
     },
     /// Fit the hazard classifier on simulated scenarios and report held-out precision/recall.
     Train(perception::train::TrainArgs),
@@ -47,7 +50,7 @@ enum BenchWhich {
 fn main() -> ExitCode {
     let cli = <Cli as clap::Parser>::parse();
     let result = match cli.command {
-        Command::Run { config } => run(config),
+        Command::Run { config, heads } => run(config, heads),
         Command::Train(args) => {
             runtime::logging::init("perception");
             perception::train::run(&args)
@@ -65,8 +68,11 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(config_path: PathBuf) -> anyhow::Result<()> {
-    let config: ServiceConfig = runtime::config::load(&config_path)?;
+fn run(config_path: PathBuf, heads: Vec<String>) -> anyhow::Result<()> {
+    let mut config: ServiceConfig = runtime::config::load(&config_path)?;
+    if !heads.is_empty() {
+        config.heads = heads;
+    }
     let model_path = config.model_path(&config_path);
     // Without a model there is no hazard map: refuse to start rather than publish empty maps.
     let mut perception = Perception::new(&config, &model_path)
