@@ -6,23 +6,8 @@ use messages::{topics, Heartbeat, LocalMapHeader, MapCell};
 use perception::synthetic::{Cylinder, Scene};
 use runtime::Ports;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
-
-struct Process {
-    child: Child,
-    domain: String,
-}
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        // SIGTERM, so the service shuts down cleanly and leaves no shared memory behind.
-        // SAFETY: kill(2) on our own child's pid.
-        unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
-        let _ = self.child.wait();
-        let _ = runtime::cleanup::remove_domain_leftovers(&self.domain);
-    }
-}
 
 fn model_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/hazard.json")
@@ -61,21 +46,13 @@ fn nearest_hazard(h: &LocalMapHeader, cells: &[MapCell], east: f64, north: f64) 
 #[test]
 fn maps_a_buoy_and_rejects_a_wrong_size_frame() {
     let domain = format!("perctest{}", std::process::id());
-    std::env::set_var(runtime::domain::DOMAIN_ENV, &domain);
     let dir = tempfile::tempdir().unwrap();
     let config = write_config(dir.path(), &model_path());
-    let child = Command::new(env!("CARGO_BIN_EXE_perception"))
-        .args(["run", "--config"])
-        .arg(&config)
-        .env(runtime::domain::DOMAIN_ENV, &domain)
-        .stdout(Stdio::null())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start perception");
-    let _process = Process {
-        child,
-        domain: domain.clone(),
-    };
+    let _process = runtime::testing::ServiceProcess::run(
+        env!("CARGO_BIN_EXE_perception"),
+        config.as_os_str(),
+        &domain,
+    );
 
     let node = runtime::tool_node("perception_test").unwrap();
     let mut disparity_pub = topics::DISPARITY.publisher(&node).unwrap();
