@@ -230,41 +230,67 @@ fn print_summary(o: &Observation, services: &[ServiceStatus], wall: Duration) {
     }
 }
 
-/// Reads the recording's summary section back: proves the file is complete and shows what is in it.
+/// What a finished recording holds, read back from its summary section (which only a complete file
+/// has): file size, totals, and (topic, schema, messages) per channel, sorted.
+pub struct RecordingContents {
+    pub bytes: u64,
+    pub messages: u64,
+    pub chunks: u64,
+    pub channels: Vec<(String, String, u64)>,
+}
+
+impl RecordingContents {
+    pub fn read(path: &Path) -> anyhow::Result<Self> {
+        let bytes = std::fs::read(path)?;
+        let summary = mcap::Summary::read(&bytes)?
+            .ok_or_else(|| anyhow::anyhow!("{} has no summary section", path.display()))?;
+        let stats = summary
+            .stats
+            .ok_or_else(|| anyhow::anyhow!("{} has no statistics", path.display()))?;
+        let mut channels: Vec<_> = summary
+            .channels
+            .values()
+            .map(|c| {
+                let n = stats
+                    .channel_message_counts
+                    .get(&c.id)
+                    .copied()
+                    .unwrap_or(0);
+                let schema = c.schema.as_ref().map_or("", |s| s.name.as_str());
+                (c.topic.clone(), schema.to_string(), n)
+            })
+            .collect();
+        channels.sort();
+        Ok(Self {
+            bytes: bytes.len() as u64,
+            messages: stats.message_count,
+            chunks: stats.chunk_count as u64,
+            channels,
+        })
+    }
+
+    /// Messages recorded on `topic` (its replay channel; views are channels of their own).
+    pub fn count(&self, topic: &str) -> u64 {
+        self.channels
+            .iter()
+            .filter(|(t, _, _)| t == topic)
+            .map(|(_, _, n)| n)
+            .sum()
+    }
+}
+
+/// Prints what the recording holds: proves the file is complete and shows what is in it.
 fn print_recording(path: &Path) -> anyhow::Result<()> {
-    let bytes = std::fs::read(path)?;
-    let summary = mcap::Summary::read(&bytes)?
-        .ok_or_else(|| anyhow::anyhow!("{} has no summary section", path.display()))?;
-    let stats = summary
-        .stats
-        .ok_or_else(|| anyhow::anyhow!("{} has no statistics", path.display()))?;
+    let r = RecordingContents::read(path)?;
     println!(
         "recording {} ({:.1} MB): {} messages on {} channels, {} chunks",
         path.display(),
-        bytes.len() as f64 / 1e6,
-        stats.message_count,
-        stats.channel_count,
-        stats.chunk_count
+        r.bytes as f64 / 1e6,
+        r.messages,
+        r.channels.len(),
+        r.chunks
     );
-    let mut rows: Vec<_> = summary
-        .channels
-        .values()
-        .map(|c| {
-            let n = stats
-                .channel_message_counts
-                .get(&c.id)
-                .copied()
-                .unwrap_or(0);
-            let schema = c
-                .schema
-                .as_ref()
-                .map_or("", |s| s.name.as_str())
-                .to_string();
-            (c.topic.clone(), schema, n)
-        })
-        .collect();
-    rows.sort();
-    for (topic, schema, n) in rows {
+    for (topic, schema, n) in &r.channels {
         println!("  {topic:<40} {schema:<24} {n:>6}");
     }
     Ok(())

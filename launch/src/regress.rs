@@ -218,7 +218,7 @@ fn replay(
             }
             while let Some(s) = local_map.receive()? {
                 let d = frames.entry(s.user_header().hdr.stamp_ns).or_default();
-                d.local_hazard_cells = Some(hazard_count(s.payload()));
+                d.local_hazard_cells = Some(hazards_at(&s.user_header().grid, s.payload()).0);
             }
             while let Some(s) = world_map.receive()? {
                 let h = s.user_header();
@@ -302,30 +302,11 @@ fn disparity_digest(d: &[f32]) -> (f64, f64) {
     (round(density), round(median))
 }
 
-fn hazard_count(cells: &[MapCell]) -> u64 {
-    cells
-        .iter()
-        .filter(|c| c.hazard >= crate::observe::HAZARD_PAINT)
-        .count() as u64
-}
-
+/// Hazard cells of a map and the sum of their ENU centres.
 fn hazards_at(grid: &messages::GridGeometry, cells: &[MapCell]) -> (u64, [f64; 2]) {
-    let mut n = 0;
-    let mut sum = [0.0; 2];
-    if cells.len() != grid.cell_count() {
-        return (0, sum);
-    }
-    for row in 0..grid.height {
-        for col in 0..grid.width {
-            if cells[(row * grid.width + col) as usize].hazard >= crate::observe::HAZARD_PAINT {
-                let c = grid.cell_center(col, row);
-                n += 1;
-                sum[0] += c[0];
-                sum[1] += c[1];
-            }
-        }
-    }
-    (n, sum)
+    crate::observe::hazard_cells(grid, cells).fold((0, [0.0; 2]), |(n, sum), (c, _)| {
+        (n + 1, [sum[0] + c[0], sum[1] + c[1]])
+    })
 }
 
 fn close_count(expected: u64, got: u64) -> bool {

@@ -48,6 +48,23 @@ fn eval(args: &[&str]) -> Value {
     report
 }
 
+/// `usv eval --closed-loop` of a scenario with the test-sized heads (640x480, 5 frames/s).
+fn closed_loop(name: &str, duration_s: &str, extra: &[&str]) -> Value {
+    let scenario = scenario(name);
+    let mut args = vec![
+        scenario.as_str(),
+        "--closed-loop",
+        "--duration",
+        duration_s,
+        "--head-scale",
+        "0.5",
+        "--camera-rate",
+        "5",
+    ];
+    args.extend_from_slice(extra);
+    eval(&args)
+}
+
 /// Smallest clearance (m) to the scenario's obstacles of `class` (truth class name).
 fn clearance_to(r: &Value, class: &str) -> f64 {
     r["behaviour"]["approaches"]
@@ -76,16 +93,7 @@ fn assert_working(r: &Value) {
 #[test]
 fn open_water_crossing_closed_loop_runs_the_whole_stack_and_keeps_clear_of_the_buoys() {
     let _guard = serial();
-    let r = eval(&[
-        &scenario("open_water_crossing"),
-        "--closed-loop",
-        "--duration",
-        "20",
-        "--head-scale",
-        "0.5",
-        "--camera-rate",
-        "5",
-    ]);
+    let r = closed_loop("open_water_crossing", "20", &[]);
     assert_working(&r);
     // The buoys lie 25 m to starboard of the track 90 m out and 260 m out: the boat keeps well
     // clear of them.
@@ -106,16 +114,7 @@ fn open_water_crossing_closed_loop_runs_the_whole_stack_and_keeps_clear_of_the_b
 #[ignore = "fails today: the crossing boat is not avoided (collision at ~21 s)"]
 fn crossing_boat_is_avoided() {
     let _guard = serial();
-    let r = eval(&[
-        &scenario("open_water_crossing"),
-        "--closed-loop",
-        "--duration",
-        "40",
-        "--head-scale",
-        "0.5",
-        "--camera-rate",
-        "5",
-    ]);
+    let r = closed_loop("open_water_crossing", "40", &[]);
     assert_working(&r);
     assert_eq!(r["behaviour"]["collision"], false, "{:#}", r["behaviour"]);
 }
@@ -123,21 +122,11 @@ fn crossing_boat_is_avoided() {
 #[test]
 fn chaos_kills_and_a_hung_perception_leave_the_boat_safe_and_the_log_complete() {
     let _guard = serial();
-    let r = eval(&[
-        &scenario("open_water_crossing"),
-        "--closed-loop",
-        "--duration",
+    let r = closed_loop(
+        "open_water_crossing",
         "20",
-        "--head-scale",
-        "0.5",
-        "--camera-rate",
-        "5",
-        "--chaos",
-        "7",
-        "--record",
-        "--lockstep-timeout-ms",
-        "500",
-    ]);
+        &["--chaos", "7", "--record", "--lockstep-timeout-ms", "500"],
+    );
     let buoys = clearance_to(&r, "buoy");
     assert!(buoys > 5.0, "too close to a buoy under chaos: {buoys} m");
     let chaos = &r["chaos"];
@@ -190,16 +179,7 @@ fn replayed_recording_gives_the_committed_outputs() {
 #[ignore = "long scenario run"]
 fn bridge_pylon_passage_closed_loop() {
     let _guard = serial();
-    let r = eval(&[
-        &scenario("bridge_pylons"),
-        "--closed-loop",
-        "--duration",
-        "50",
-        "--head-scale",
-        "0.5",
-        "--camera-rate",
-        "5",
-    ]);
+    let r = closed_loop("bridge_pylons", "50", &[]);
     assert_working(&r);
     assert!(clearance_to(&r, "pylon") > 2.0, "{:#}", r["behaviour"]);
     assert!(r["behaviour"]["waypoints_reached"].as_u64().unwrap() >= 1);

@@ -20,7 +20,7 @@ use sim::Simulator;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use stereo::bm::BmParams;
-use stereo::calib::{Calibration, Intrinsics};
+use stereo::calib::Calibration;
 use stereo::disparity::{MatcherConfig, DISP_SCALE};
 use stereo::pipeline::{FramePipeline, PlaneSearch};
 
@@ -165,28 +165,12 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
         h.width = args.width;
         h.height = args.height;
         let h = h.clone();
-        let f = h.focal_px();
-        let (cx, cy) = ((h.width as f64 - 1.0) / 2.0, (h.height as f64 - 1.0) / 2.0);
-        let intr = Intrinsics {
-            fx: f,
-            fy: f,
-            cx,
-            cy,
-            k1: 0.0,
-            k2: 0.0,
-            p1: 0.0,
-            p2: 0.0,
-            k3: 0.0,
-        };
-        let calib = Calibration {
-            width: h.width as usize,
-            height: h.height as usize,
-            left: intr.clone(),
-            right: intr,
-            rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            translation: [-h.baseline, 0.0, 0.0],
-            oversize: 1.0,
-        };
+        let calib = Calibration::ideal(
+            h.width as usize,
+            h.height as usize,
+            h.focal_px(),
+            h.baseline,
+        );
         calib.validate()?;
         // The stereo settings of the simulated sets (launch/src/pipeline.rs). 128 px of disparity
         // reach water about 4.5 m from a 640-wide head; fewer leave the lowest rows mismatched.

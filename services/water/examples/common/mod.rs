@@ -9,7 +9,7 @@ use nalgebra::Vector3;
 use sim::{Command, Encoding, Simulator, WaterRegion};
 use std::path::Path;
 use stereo::bm::BmParams;
-use stereo::calib::{Calibration, Intrinsics};
+use stereo::calib::Calibration;
 use stereo::pipeline::{FramePipeline, PlaneSearch};
 use stereo::MatcherConfig;
 use water::eval::TruthBody;
@@ -53,28 +53,7 @@ impl SimStereo {
         );
         let (w, ht) = (h.width as usize / scale, h.height as usize / scale);
         // Ideal rectified pair (as `sim calib` writes it), at the working size.
-        let f = h.focal_px() / scale as f64;
-        let (cx, cy) = ((w as f64 - 1.0) / 2.0, (ht as f64 - 1.0) / 2.0);
-        let intr = Intrinsics {
-            fx: f,
-            fy: f,
-            cx,
-            cy,
-            k1: 0.0,
-            k2: 0.0,
-            p1: 0.0,
-            p2: 0.0,
-            k3: 0.0,
-        };
-        let calib = Calibration {
-            width: w,
-            height: ht,
-            left: intr.clone(),
-            right: intr,
-            rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            translation: [-h.baseline, 0.0, 0.0],
-            oversize: 1.0,
-        };
+        let calib = Calibration::ideal(w, ht, h.focal_px() / scale as f64, h.baseline);
         let matcher = MatcherConfig::Bm(BmParams {
             num_disparities,
             ..BmParams::default()
@@ -84,10 +63,10 @@ impl SimStereo {
         let rot = h.mount.rotation();
         let left = h.mount.position + rot * Vector3::new(0.0, h.baseline / 2.0, 0.0);
         let camera = CameraModel {
-            fx: f,
-            fy: f,
-            cx,
-            cy,
+            fx: calib.left.fx,
+            fy: calib.left.fy,
+            cx: calib.left.cx,
+            cy: calib.left.cy,
             baseline_m: h.baseline,
             mount: Pose {
                 position: left.into(),
