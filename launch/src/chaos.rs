@@ -91,8 +91,31 @@ impl Chaos {
                 "SIGSTOP",
             )
         } else {
-            let k = (self.next() % self.victims.len().max(1) as u64) as usize;
-            (self.victims[k].clone(), libc::SIGKILL, "SIGKILL")
+            // Services killed in the last 10 s are spared when others remain: the supervisor backs
+            // off a crash loop on purpose, and each kill should measure a plain restart.
+            let recent: Vec<&str> = self
+                .records
+                .iter()
+                .rev()
+                .take_while(|r| {
+                    r["scenario_s"].as_f64().unwrap_or(0.0) > obs.scenario_time_s() - 10.0
+                        || self.started.elapsed() < Duration::from_secs(10)
+                })
+                .filter_map(|r| r["service"].as_str())
+                .collect();
+            let candidates: Vec<String> = self
+                .victims
+                .iter()
+                .filter(|v| !recent.contains(&v.as_str()))
+                .cloned()
+                .collect();
+            let pool = if candidates.is_empty() {
+                self.victims.clone()
+            } else {
+                candidates
+            };
+            let k = (self.next() % pool.len().max(1) as u64) as usize;
+            (pool[k].clone(), libc::SIGKILL, "SIGKILL")
         };
         let services = session.ps()?;
         let Some(pid) = services

@@ -16,8 +16,8 @@ pub struct DemoArgs {
     /// Scenario (default: services/sim/scenarios/open_water_crossing.toml of this checkout).
     #[arg(long)]
     scenario: Option<PathBuf>,
-    /// Scenario time to run (s).
-    #[arg(long, default_value_t = 20.0)]
+    /// Scenario time to run (s). 30 s include the crossing boat's closest approach.
+    #[arg(long, default_value_t = 30.0)]
     duration: f64,
     /// Resolution of the stereo heads as a fraction of the scenario's (1.0 = 1280x960 maritime heads).
     #[arg(long, default_value_t = 0.5)]
@@ -171,17 +171,19 @@ fn print_summary(o: &Observation, services: &[ServiceStatus], wall: Duration) {
         fmt(percentile(&o.command_latency_ms, 0.5), "ms"),
         fmt(percentile(&o.command_latency_ms, 0.99), "ms"),
     );
+    let mut by_class = std::collections::BTreeMap::<&str, usize>::new();
+    for (class, _) in o.contacts.values() {
+        *by_class
+            .entry(messages::contact_class::name(*class))
+            .or_default() += 1;
+    }
     println!(
-        "hazards: up to {} world-map cells at p >= 0.5; contacts confirmed: {}",
+        "hazards: up to {} world-map cells at p >= 0.5; tracks confirmed during the run: {} ({})",
         o.max_hazard_cells,
-        o.contacts
+        o.contacts.len(),
+        by_class
             .iter()
-            .map(|(id, (class, p))| format!(
-                "#{id} {} at ({:.0}, {:.0})",
-                messages::contact_class::name(*class),
-                p[0],
-                p[1]
-            ))
+            .map(|(class, n)| format!("{n} {class}"))
             .collect::<Vec<_>>()
             .join(", ")
     );
@@ -228,41 +230,67 @@ fn print_summary(o: &Observation, services: &[ServiceStatus], wall: Duration) {
     }
 }
 
-/// Reads the recording's summary section back: proves the file is complete and shows what is in it.
+/// What a finished recording holds, read back from its summary section (which only a complete file
+/// has): file size, totals, and (topic, schema, messages) per channel, sorted.
+pub struct RecordingContents {
+    pub bytes: u64,
+    pub messages: u64,
+    pub chunks: u64,
+    pub channels: Vec<(String, String, u64)>,
+}
+
+impl RecordingContents {
+    pub fn read(path: &Path) -> anyhow::Result<Self> {
+        let bytes = std::fs::read(path)?;
+        let summary = mcap::Summary::read(&bytes)?
+            .ok_or_else(|| anyhow::anyhow!("{} has no summary section", path.display()))?;
+        let stats = summary
+            .stats
+            .ok_or_else(|| anyhow::anyhow!("{} has no statistics", path.display()))?;
+        let mut channels: Vec<_> = summary
+            .channels
+            .values()
+            .map(|c| {
+                let n = stats
+                    .channel_message_counts
+                    .get(&c.id)
+                    .copied()
+                    .unwrap_or(0);
+                let schema = c.schema.as_ref().map_or("", |s| s.name.as_str());
+                (c.topic.clone(), schema.to_string(), n)
+            })
+            .collect();
+        channels.sort();
+        Ok(Self {
+            bytes: bytes.len() as u64,
+            messages: stats.message_count,
+            chunks: stats.chunk_count as u64,
+            channels,
+        })
+    }
+
+    /// Messages recorded on `topic` (its replay channel; views are channels of their own).
+    pub fn count(&self, topic: &str) -> u64 {
+        self.channels
+            .iter()
+            .filter(|(t, _, _)| t == topic)
+            .map(|(_, _, n)| n)
+            .sum()
+    }
+}
+
+/// Prints what the recording holds: proves the file is complete and shows what is in it.
 fn print_recording(path: &Path) -> anyhow::Result<()> {
-    let bytes = std::fs::read(path)?;
-    let summary = mcap::Summary::read(&bytes)?
-        .ok_or_else(|| anyhow::anyhow!("{} has no summary section", path.display()))?;
-    let stats = summary
-        .stats
-        .ok_or_else(|| anyhow::anyhow!("{} has no statistics", path.display()))?;
+    let r = RecordingContents::read(path)?;
     println!(
         "recording {} ({:.1} MB): {} messages on {} channels, {} chunks",
         path.display(),
-        bytes.len() as f64 / 1e6,
-        stats.message_count,
-        stats.channel_count,
-        stats.chunk_count
+        r.bytes as f64 / 1e6,
+        r.messages,
+        r.channels.len(),
+        r.chunks
     );
-    let mut rows: Vec<_> = summary
-        .channels
-        .values()
-        .map(|c| {
-            let n = stats
-                .channel_message_counts
-                .get(&c.id)
-                .copied()
-                .unwrap_or(0);
-            let schema = c
-                .schema
-                .as_ref()
-                .map_or("", |s| s.name.as_str())
-                .to_string();
-            (c.topic.clone(), schema, n)
-        })
-        .collect();
-    rows.sort();
-    for (topic, schema, n) in rows {
+    for (topic, schema, n) in &r.channels {
         println!("  {topic:<40} {schema:<24} {n:>6}");
     }
     Ok(())

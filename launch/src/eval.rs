@@ -283,26 +283,8 @@ fn check_recording(
     services: &[ServiceStatus],
     heads: usize,
 ) -> anyhow::Result<serde_json::Value> {
-    let bytes = std::fs::read(file)?;
-    let summary = mcap::Summary::read(&bytes)?
-        .ok_or_else(|| anyhow::anyhow!("{} has no summary section", file.display()))?;
-    let stats = summary
-        .stats
-        .ok_or_else(|| anyhow::anyhow!("{} has no statistics", file.display()))?;
-    let count = |topic: &str| -> u64 {
-        summary
-            .channels
-            .values()
-            .filter(|c| c.topic == topic)
-            .map(|c| {
-                stats
-                    .channel_message_counts
-                    .get(&c.id)
-                    .copied()
-                    .unwrap_or(0)
-            })
-            .sum()
-    };
+    let contents = crate::demo::RecordingContents::read(file)?;
+    let count = |topic: &str| contents.count(topic);
     let frames = services
         .iter()
         .find(|s| s.name == "sim")

@@ -250,20 +250,14 @@ impl Observation {
         }
         self.hazard_resolution_m = grid.resolution_m;
         let mut hazards = 0;
-        for row in 0..grid.height {
-            for col in 0..grid.width {
-                let cell = cells[(row * grid.width + col) as usize];
-                if cell.hazard >= HAZARD_PAINT {
-                    hazards += 1;
-                    let [e, n] = grid.cell_center(col, row);
-                    let key = (
-                        (e / grid.resolution_m).floor() as i64,
-                        (n / grid.resolution_m).floor() as i64,
-                    );
-                    let v = self.hazard_cells.entry(key).or_default();
-                    *v = (*v).max(cell.hazard);
-                }
-            }
+        for ([e, n], hazard) in hazard_cells(grid, cells) {
+            hazards += 1;
+            let key = (
+                (e / grid.resolution_m).floor() as i64,
+                (n / grid.resolution_m).floor() as i64,
+            );
+            let v = self.hazard_cells.entry(key).or_default();
+            *v = (*v).max(hazard);
         }
         self.max_hazard_cells = self.max_hazard_cells.max(hazards);
         match &mut self.latest_map {
@@ -280,7 +274,7 @@ impl Observation {
         self.contact_lists += 1;
         for c in contacts.iter().filter(|c| c.confirmed == 1) {
             self.contacts.insert(c.id, (c.class, c.position));
-            if self.contact_lists % 5 == 0 {
+            if self.contact_lists.is_multiple_of(5) {
                 self.contact_trail.push((c.id, c.class, c.position));
             }
         }
@@ -369,6 +363,23 @@ impl Observation {
             "mission_step": self.last_status.map(|s| s.step_name.as_str().to_string()),
         })
     }
+}
+
+/// ENU centre and hazard of every cell at or above [`HAZARD_PAINT`] (nothing for a grid whose cell
+/// count does not match its geometry).
+pub fn hazard_cells<'a>(
+    grid: &'a GridGeometry,
+    cells: &'a [MapCell],
+) -> impl Iterator<Item = ([f64; 2], u8)> + 'a {
+    let valid = cells.len() == grid.cell_count();
+    cells
+        .iter()
+        .enumerate()
+        .filter(move |(_, c)| valid && c.hazard >= HAZARD_PAINT)
+        .map(move |(i, c)| {
+            let (col, row) = (i as u32 % grid.width, i as u32 / grid.width);
+            (grid.cell_center(col, row), c.hazard)
+        })
 }
 
 fn round2(v: f64) -> f64 {

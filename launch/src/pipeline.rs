@@ -185,7 +185,11 @@ pub fn write(spec: &PipelineSpec, dir: &Path) -> anyhow::Result<WrittenSet> {
         std::fs::write(&mission_file, text)?;
         let seq_config = config("sequencer.toml")?;
         for (name, extra) in [
-            ("perception", String::new()),
+            // Perception merges exactly the heads of this run into one map per frame.
+            (
+                "perception",
+                format!(", \"--heads\", \"{}\"", heads.join(",")),
+            ),
             ("mapper", String::new()),
             ("tracker", String::new()),
             (

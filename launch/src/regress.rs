@@ -45,6 +45,9 @@ pub struct RegressArgs {
     /// Give up after this many seconds of wall time.
     #[arg(long, default_value_t = 600)]
     timeout_s: u64,
+    /// Keep the run directory (generated set, configurations, the set's log) for a look after.
+    #[arg(long)]
+    keep: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -93,7 +96,11 @@ pub fn run(args: RegressArgs) -> anyhow::Result<()> {
     } else {
         replay(&config, &scenario, &dir, &work, &args)
     };
-    let _ = std::fs::remove_dir_all(&work);
+    if args.keep {
+        println!("run directory kept: {}", work.display());
+    } else {
+        let _ = std::fs::remove_dir_all(&work);
+    }
     result
 }
 
@@ -135,8 +142,9 @@ fn record(
         lz4: true,
     });
     let written = crate::pipeline::write(&spec, work)?;
-    let session = Session::start(&written.set, work, "regress")?;
-    wait_for_source(session, "sim", args.timeout_s, |_| Ok(()))?;
+    let mut session = Session::start(&written.set, work, "regress")?;
+    wait_for_source(&mut session, "sim", args.timeout_s, |_| Ok(()))?;
+    session.down()?;
     println!(
         "recorded {} ({:.1} MB); now run `usv regress {} --update`",
         file.display(),
@@ -146,9 +154,10 @@ fn record(
     Ok(())
 }
 
-/// Runs a set until its source has stopped, calling `poll` all along; then takes it down.
+/// Runs a set until its source has stopped, calling `poll` all along. The caller takes the set
+/// down once its own nodes are gone (a live node's files would be left in the domain).
 fn wait_for_source(
-    mut session: Session,
+    session: &mut Session,
     source: &str,
     timeout_s: u64,
     mut poll: impl FnMut(&mut Session) -> anyhow::Result<()>,
@@ -157,20 +166,19 @@ fn wait_for_source(
     let mut last_ps = Instant::now();
     loop {
         session.check_alive()?;
-        poll(&mut session)?;
+        poll(session)?;
         if last_ps.elapsed() > Duration::from_millis(300) {
             last_ps = Instant::now();
             if has_stopped(&session.ps()?, source) {
                 // Outputs of the last frame are still on their way.
                 std::thread::sleep(Duration::from_millis(500));
-                poll(&mut session)?;
-                break;
+                poll(session)?;
+                return Ok(());
             }
         }
         anyhow::ensure!(Instant::now() < deadline, "the run did not finish in time");
         std::thread::sleep(Duration::from_millis(2));
     }
-    session.down()
 }
 
 fn replay(
@@ -189,7 +197,7 @@ fn replay(
     );
     let spec = spec(config, scenario, Source::Replay { file });
     let written = crate::pipeline::write(&spec, work)?;
-    let session = Session::start(&written.set, work, "regress")?;
+    let mut session = Session::start(&written.set, work, "regress")?;
     let mut got = Expectations::default();
     {
         let node = runtime::tool_node("usv-regress")?;
@@ -198,7 +206,7 @@ fn replay(
         let world_map = topics::WORLD_MAP.subscriber(&node)?;
         let contacts = topics::CONTACTS.subscriber(&node)?;
         let commands = topics::ACTUATOR_COMMAND.subscriber(&node)?;
-        wait_for_source(session, "sensors", args.timeout_s, |_| {
+        wait_for_source(&mut session, "sensors", args.timeout_s, |_| {
             let frames = &mut got.frames;
             while let Some(s) = disparity.receive()? {
                 let h = s.user_header();
@@ -210,7 +218,7 @@ fn replay(
             }
             while let Some(s) = local_map.receive()? {
                 let d = frames.entry(s.user_header().hdr.stamp_ns).or_default();
-                d.local_hazard_cells = Some(hazard_count(s.payload()));
+                d.local_hazard_cells = Some(hazards_at(&s.user_header().grid, s.payload()).0);
             }
             while let Some(s) = world_map.receive()? {
                 let h = s.user_header();
@@ -241,6 +249,7 @@ fn replay(
             Ok(())
         })?;
     }
+    session.down()?;
     // Commands also follow INS samples between frames; only frames with a disparity are frames.
     got.frames.retain(|_, d| !d.disparity.is_empty());
     let expected_file = dir.join("expected.json");
@@ -293,30 +302,11 @@ fn disparity_digest(d: &[f32]) -> (f64, f64) {
     (round(density), round(median))
 }
 
-fn hazard_count(cells: &[MapCell]) -> u64 {
-    cells
-        .iter()
-        .filter(|c| c.hazard >= crate::observe::HAZARD_PAINT)
-        .count() as u64
-}
-
+/// Hazard cells of a map and the sum of their ENU centres.
 fn hazards_at(grid: &messages::GridGeometry, cells: &[MapCell]) -> (u64, [f64; 2]) {
-    let mut n = 0;
-    let mut sum = [0.0; 2];
-    if cells.len() != grid.cell_count() {
-        return (0, sum);
-    }
-    for row in 0..grid.height {
-        for col in 0..grid.width {
-            if cells[(row * grid.width + col) as usize].hazard >= crate::observe::HAZARD_PAINT {
-                let c = grid.cell_center(col, row);
-                n += 1;
-                sum[0] += c[0];
-                sum[1] += c[1];
-            }
-        }
-    }
-    (n, sum)
+    crate::observe::hazard_cells(grid, cells).fold((0, [0.0; 2]), |(n, sum), (c, _)| {
+        (n + 1, [sum[0] + c[0], sum[1] + c[1]])
+    })
 }
 
 fn close_count(expected: u64, got: u64) -> bool {
@@ -429,7 +419,8 @@ mod tests {
     #[test]
     fn behaviour_changes_are_caught() {
         let e = one(digest());
-        let changes: Vec<Box<dyn Fn(&mut FrameDigest)>> = vec![
+        type Change = Box<dyn Fn(&mut FrameDigest)>;
+        let changes: Vec<Change> = vec![
             Box::new(|d| d.command = Some((-0.2, 40.0, 1))),
             Box::new(|d| d.command = Some((0.1, 40.0, 2))),
             Box::new(|d| d.contacts = Some(vec![])),

@@ -4,44 +4,20 @@
 
 use messages::{topics, GridGeometry, Header, LocalMapHeader, MapCell, Pose};
 use runtime::Ports;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-
-struct Process {
-    child: Child,
-    domain: String,
-}
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        // SIGTERM, so the service shuts down cleanly and leaves no shared memory behind.
-        // SAFETY: kill(2) on our own child's pid.
-        unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
-        let _ = self.child.wait();
-        let _ = runtime::cleanup::remove_domain_leftovers(&self.domain);
-    }
-}
 
 #[test]
 fn local_maps_become_a_world_map_and_bad_input_is_rejected() {
     let domain = format!("maptest{}", std::process::id());
-    std::env::set_var(runtime::domain::DOMAIN_ENV, &domain);
     let dir = std::env::temp_dir().join(&domain);
     std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("mapper.toml");
     std::fs::write(&config, "size_m = 100.0\nresolution_m = 0.5\n").unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_mapper"))
-        .args(["run", "--config"])
-        .arg(&config)
-        .env(runtime::domain::DOMAIN_ENV, &domain)
-        .stdout(Stdio::null())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start mapper");
-    let _process = Process {
-        child,
-        domain: domain.clone(),
-    };
+    let _process = runtime::testing::ServiceProcess::run(
+        env!("CARGO_BIN_EXE_mapper"),
+        config.as_os_str(),
+        &domain,
+    );
 
     let node = runtime::tool_node("mapper_test").unwrap();
     let mut pub_ = topics::LOCAL_MAP.publisher(&node).unwrap();

@@ -8,7 +8,8 @@
 //! (uncompressed or lz4), small messages to their own chunks (zstd by default).
 
 pub mod bench;
-pub mod foxglove;
+/// The Foxglove views live in the shared `views` crate (the live bridge encodes the same way).
+pub use views as foxglove;
 pub mod mcap;
 pub mod recording;
 

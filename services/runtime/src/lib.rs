@@ -17,6 +17,7 @@ pub mod logging;
 mod pubsub;
 mod service;
 mod shutdown;
+pub mod testing;
 
 pub use health::Health;
 pub use pubsub::{Pod, PublishRaw, Publisher, Receive, Subscriber};

@@ -5,7 +5,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use messages::recording::{split, type_name};
 use messages::topics;
-use runtime::lockstep::{LockStep, Step};
+use runtime::lockstep::LockStep;
 use runtime::{PublishRaw, Service};
 use sensors::reader::{Message, Messages, Recording};
 use std::collections::BTreeMap;
@@ -199,9 +199,34 @@ fn replay(args: ReplayArgs) -> anyhow::Result<()> {
     let mut failure: Option<anyhow::Error> = None;
     tracing::info!(file = %args.file.display(), topics = pubs.len(), "replaying");
 
+    // Lock-step: the heads of one frame share a stamp and go out together; before anything after
+    // them the replay waits (without blocking its loop, so heartbeats keep going) until the
+    // pipeline reported the previous stamp done. At the end it waits for the last frame too.
+    let mut last_frame: Option<u64> = None;
+    let mut waiting: Option<(u64, Instant)> = None;
+    let mut finishing = false;
     service.run(&[], Some(SLICE), |health, _| {
         if failure.is_some() {
             return Ok(());
+        }
+        if let (Some((stamp, since)), Some((beats, ls))) = (waiting, lockstep.as_mut()) {
+            ls.update(beats)?;
+            if !ls.done(stamp) && !shutdown.requested() {
+                if since.elapsed() < lockstep_timeout {
+                    return Ok(());
+                }
+                ls.timeouts += 1;
+                tracing::warn!(
+                    stamp,
+                    "lock-step: no answer from {}",
+                    ls.missing(stamp).join(", ")
+                );
+            }
+            waiting = None;
+            if finishing {
+                shutdown.request();
+                return Ok(());
+            }
         }
         let slice_end = Instant::now() + SLICE;
         while Instant::now() < slice_end && !shutdown.requested() {
@@ -220,11 +245,32 @@ fn replay(args: ReplayArgs) -> anyhow::Result<()> {
                         continue;
                     }
                     None => {
-                        shutdown.request();
+                        match (lockstep.is_some(), last_frame.take()) {
+                            (true, Some(stamp)) => {
+                                finishing = true;
+                                waiting = Some((stamp, Instant::now()));
+                            }
+                            _ => shutdown.request(),
+                        }
                         return Ok(());
                     }
                 },
             };
+            let is_frame = pubs
+                .get(&msg.channel)
+                .is_some_and(|p| p.topic() == topics::STEREO_FRAME.name);
+            if lockstep.is_some() {
+                // Anything after a frame but that frame's other heads (the INS samples leading to
+                // the next frame, the next frame) waits until the frame is through the pipeline, as
+                // with the simulator as the source.
+                if let Some(previous) = last_frame.filter(|&s| !(is_frame && s == msg.publish_time))
+                {
+                    last_frame = None;
+                    waiting = Some((previous, Instant::now()));
+                    player.next = Some(msg);
+                    return Ok(());
+                }
+            }
             if let Some(due) = player.due(msg.log_time) {
                 let now = Instant::now();
                 if due > slice_end {
@@ -247,20 +293,9 @@ fn replay(args: ReplayArgs) -> anyhow::Result<()> {
             if let Some(bar) = &progress {
                 bar.set_position(msg.log_time.saturating_sub(from) / 1_000_000);
             }
-            if publisher.topic() == topics::STEREO_FRAME.name {
+            if is_frame {
                 health.record(msg.publish_time, started);
-                if let Some((beats, ls)) = lockstep.as_mut() {
-                    match ls.wait(beats, msg.publish_time, lockstep_timeout, &shutdown)? {
-                        Step::TimedOut(missing) => tracing::warn!(
-                            stamp = msg.publish_time,
-                            "lock-step: no answer from {}",
-                            missing.join(", ")
-                        ),
-                        Step::Done | Step::Shutdown => {}
-                    }
-                    // Back to the service loop: heartbeats go out between frames.
-                    return Ok(());
-                }
+                last_frame = Some(msg.publish_time);
             }
         }
         Ok(())

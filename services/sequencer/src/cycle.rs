@@ -36,6 +36,9 @@ pub struct Config {
     /// Wall-clock gap after which a silent input counts as stale even when stream time stands still
     /// (all inputs stopped), ms.
     pub input_deadline_ms: u64,
+    /// With `watchdog.require_contacts`, how long the decision on a new map waits for the contacts
+    /// of the same frame (ms, wall clock).
+    pub contacts_wait_ms: u64,
     /// Map resolution the arc table is built for at start; a map with another resolution rebuilds it.
     pub map_resolution_m: f64,
     pub arcs: ArcConfig,
@@ -49,6 +52,7 @@ impl Default for Config {
             cycle_on: CycleOn::Map,
             tick_ms: 20,
             input_deadline_ms: 1000,
+            contacts_wait_ms: 200,
             map_resolution_m: 0.5,
             arcs: ArcConfig::default(),
             control: ControlConfig::default(),

@@ -138,6 +138,9 @@ fn run(config: PathBuf, mission: Option<PathBuf>) -> anyhow::Result<()> {
         contacts.input(contacts_deadline),
     ];
     const INPUT_BITS: [u32; 3] = [watchdog::MAP, watchdog::INS, watchdog::CONTACTS];
+    let mut contacts_stamp = 0u64;
+    let mut map_pending: Option<(u64, Instant)> = None;
+    let contacts_wait = Duration::from_millis(cfg.contacts_wait_ms);
     tracing::info!(
         arcs = seq.arcs().arcs().len(),
         cycle_on = ?cfg.cycle_on,
@@ -155,36 +158,48 @@ fn run(config: PathBuf, mission: Option<PathBuf>) -> anyhow::Result<()> {
             }
             while let Some(sample) = ins.receive()? {
                 match seq.on_ins(sample.payload()) {
-                    Ok(()) => cycle |= cfg.cycle_on == CycleOn::Ins,
+                    // One cycle per sample, however the samples were batched into wake-ups: the
+                    // controller's rate limits and integrators then see the same steps every run.
+                    Ok(()) if cfg.cycle_on == CycleOn::Ins => {
+                        run_cycle(&mut seq, &source, &mut commands, &mut statuses)?
+                    }
+                    Ok(()) => {}
                     // Stamp 0: an INS sample must not advance the map stamp lock-step sources read.
                     Err(e) => health.reject(0, &e.to_string()),
                 }
             }
             if let Some(sample) = contacts.latest()? {
+                contacts_stamp = contacts_stamp.max(sample.payload().hdr.stamp_ns);
                 seq.on_contacts(sample.payload());
             }
-            let mut map_stamp = None;
             if let Some(sample) = maps.latest()? {
                 let stamp = sample.user_header().hdr.stamp_ns;
                 match seq.on_map(sample.user_header(), sample.payload()) {
-                    Ok(()) => {
-                        map_stamp = Some(stamp);
-                        // A new map always gets a decision, so the command for a frame goes out
-                        // before the frame is reported done (lock-step sources apply it next).
-                        cycle = true;
-                    }
+                    Ok(()) => map_pending = Some((stamp, Instant::now())),
                     Err(e) => health.reject(stamp, &e.to_string()),
+                }
+            }
+            // A new map gets a decision, so the command for a frame goes out before the frame is
+            // reported done (lock-step sources apply it next). With a tracker in the set the decision
+            // waits for the contacts of the same frame (the tracker reads the same map), so it does
+            // not depend on which of the two was faster; a silent tracker delays it by at most
+            // `contacts_wait`.
+            let mut map_stamp = None;
+            if let Some((stamp, since)) = map_pending {
+                if !cfg.watchdog.require_contacts
+                    || contacts_stamp >= stamp
+                    || since.elapsed() >= contacts_wait
+                {
+                    map_pending = None;
+                    map_stamp = Some(stamp);
+                    cycle = true;
                 }
             }
             if wake == Wake::Tick {
                 serve(&server, &mut seq)?;
             }
             if cycle {
-                let (mut command, mut status) = seq.cycle(&source);
-                command.hdr.seq = commands.next_seq();
-                commands.publish(&command)?;
-                status.hdr.seq = statuses.next_seq();
-                statuses.publish(&status)?;
+                run_cycle(&mut seq, &source, &mut commands, &mut statuses)?;
             }
             if let Some(stamp) = map_stamp {
                 health.record(stamp, started);
@@ -192,4 +207,19 @@ fn run(config: PathBuf, mission: Option<PathBuf>) -> anyhow::Result<()> {
             Ok(())
         },
     )
+}
+
+/// One sequencer cycle: decide, then publish the command and the status.
+fn run_cycle(
+    seq: &mut Sequencer,
+    source: &str,
+    commands: &mut runtime::Publisher<messages::ActuatorCommand, ()>,
+    statuses: &mut runtime::Publisher<messages::SequencerStatus, ()>,
+) -> anyhow::Result<()> {
+    let (mut command, mut status) = seq.cycle(source);
+    command.hdr.seq = commands.next_seq();
+    commands.publish(&command)?;
+    status.hdr.seq = statuses.next_seq();
+    statuses.publish(&status)?;
+    Ok(())
 }

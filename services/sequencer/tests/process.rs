@@ -9,23 +9,7 @@ use messages::{
     MissionCommand, MissionReply, Pose, WorldMapHeader, MAX_MISSION_TEXT,
 };
 use runtime::Ports;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-
-struct Process {
-    child: Child,
-    domain: String,
-}
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        // SIGTERM, so the service shuts down cleanly and leaves no shared memory behind.
-        // SAFETY: kill(2) on our own child's pid.
-        unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
-        let _ = self.child.wait();
-        let _ = runtime::cleanup::remove_domain_leftovers(&self.domain);
-    }
-}
 
 fn request(
     client: &iceoryx2::port::client::Client<ipc::Service, MissionCommand, (), MissionReply, ()>,
@@ -59,7 +43,6 @@ fn request(
 #[test]
 fn mission_drives_and_watchdog_stops_a_real_process() {
     let domain = format!("seqtest{}", std::process::id());
-    std::env::set_var(runtime::domain::DOMAIN_ENV, &domain);
     let dir = std::env::temp_dir().join(&domain);
     std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("sequencer.toml");
@@ -68,18 +51,11 @@ fn mission_drives_and_watchdog_stops_a_real_process() {
         "input_deadline_ms = 2000\n[watchdog]\nins_timeout_s = 0.3\nmap_timeout_s = 0.5\n",
     )
     .unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_sequencer"))
-        .args(["run", "--config"])
-        .arg(&config)
-        .env(runtime::domain::DOMAIN_ENV, &domain)
-        .stdout(Stdio::null())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start sequencer");
-    let _process = Process {
-        child,
-        domain: domain.clone(),
-    };
+    let _process = runtime::testing::ServiceProcess::run(
+        env!("CARGO_BIN_EXE_sequencer"),
+        config.as_os_str(),
+        &domain,
+    );
 
     let node = runtime::tool_node("sequencer_test").unwrap();
     let mut ins_pub = topics::INS.publisher(&node).unwrap();

@@ -81,6 +81,31 @@ fn one() -> f64 {
 }
 
 impl Calibration {
+    /// An ideal rectified pair (no distortion, no rotation, principal point at the image centre),
+    /// as the simulator's untoed heads are: what tools that render and match simulated frames use.
+    pub fn ideal(width: usize, height: usize, focal_px: f64, baseline_m: f64) -> Self {
+        let intrinsics = Intrinsics {
+            fx: focal_px,
+            fy: focal_px,
+            cx: (width as f64 - 1.0) / 2.0,
+            cy: (height as f64 - 1.0) / 2.0,
+            k1: 0.0,
+            k2: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        };
+        Self {
+            width,
+            height,
+            left: intrinsics.clone(),
+            right: intrinsics,
+            rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            translation: [-baseline_m, 0.0, 0.0],
+            oversize: 1.0,
+        }
+    }
+
     pub fn load(path: &Path) -> Result<Self, CalibError> {
         let text = std::fs::read_to_string(path).map_err(|source| CalibError::Io {
             path: path.display().to_string(),

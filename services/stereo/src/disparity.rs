@@ -140,6 +140,19 @@ pub(crate) fn argmin_lr(
     mr: &mut [u16],
     md: &mut [u16],
 ) -> (usize, u16) {
+    argmin_lr_from(costs, slide, mr, md, 0)
+}
+
+/// `argmin_lr` over a disparity window starting at `base`: `costs[k]` belongs to disparity
+/// `base + k`, which is what `md` records; the returned index is relative to the window.
+#[inline(always)]
+pub(crate) fn argmin_lr_from(
+    costs: &mut [u16],
+    slide: Option<(&[u16], &[u16])>,
+    mr: &mut [u16],
+    md: &mut [u16],
+    base: u16,
+) -> (usize, u16) {
     let n = costs.len();
     assert!(n.is_multiple_of(LANES) && mr.len() >= n && md.len() >= n);
     if let Some((a, s)) = slide {
@@ -148,8 +161,20 @@ pub(crate) fn argmin_lr(
     #[cfg(target_arch = "x86_64")]
     if crate::simd::has_avx2() {
         // SAFETY: AVX2 is present; lengths checked above.
-        return unsafe { argmin_lr_avx2(costs, slide, mr, md) };
+        return unsafe { argmin_lr_avx2(costs, slide, mr, md, base) };
     }
+    argmin_lr_scalar(costs, slide, mr, md, base)
+}
+
+/// Portable `argmin_lr_from` (also the reference the vector path is tested against).
+#[inline(always)]
+pub(crate) fn argmin_lr_scalar(
+    costs: &mut [u16],
+    slide: Option<(&[u16], &[u16])>,
+    mr: &mut [u16],
+    md: &mut [u16],
+    base: u16,
+) -> (usize, u16) {
     if let Some((a, s)) = slide {
         for ((c, &a), &s) in costs.iter_mut().zip(a).zip(s) {
             *c = c.wrapping_add(a).wrapping_sub(s);
@@ -167,7 +192,7 @@ pub(crate) fn argmin_lr(
         }
         if v < *r {
             *r = v;
-            *m = d as u16;
+            *m = base + d as u16;
         }
     }
     best
@@ -181,11 +206,15 @@ unsafe fn argmin_lr_avx2(
     slide: Option<(&[u16], &[u16])>,
     mr: &mut [u16],
     md: &mut [u16],
+    base: u16,
 ) -> (usize, u16) {
     use std::arch::x86_64::*;
     let mut bv = _mm256_set1_epi16(-1);
-    let mut bd = _mm256_setzero_si256();
-    let mut idx = _mm256_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    let mut bd = _mm256_set1_epi16(base as i16);
+    let mut idx = _mm256_add_epi16(
+        _mm256_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
+        _mm256_set1_epi16(base as i16),
+    );
     let step = _mm256_set1_epi16(LANES as i16);
     let (c, r, m) = (costs.as_mut_ptr(), mr.as_mut_ptr(), md.as_mut_ptr());
     for k in (0..costs.len() / LANES).map(|i| i * LANES) {
@@ -215,7 +244,7 @@ unsafe fn argmin_lr_avx2(
     let ds = _mm256_blendv_epi8(_mm256_set1_epi16(-1), bd, hit);
     let d8 = _mm_min_epu16(_mm256_castsi256_si128(ds), _mm256_extracti128_si256(ds, 1));
     let d = _mm_extract_epi16(_mm_minpos_epu16(d8), 0) as usize;
-    (d, min)
+    (d - base as usize, min)
 }
 
 /// Smallest cost more than one step away from `best` within `0..=dmax`.
@@ -264,9 +293,23 @@ pub(crate) fn argmin_lr_partial(
     mr: &mut [u16],
     md: &mut [u16],
 ) -> (usize, u16) {
+    argmin_lr_partial_from(costs, dmax, tmp, mr, md, 0)
+}
+
+/// `argmin_lr_partial` over a window starting at disparity `base` (see `argmin_lr_from`).
+#[inline(always)]
+pub(crate) fn argmin_lr_partial_from(
+    costs: &[u16],
+    dmax: usize,
+    tmp: &mut [u16],
+    mr: &mut [u16],
+    md: &mut [u16],
+    base: u16,
+) -> (usize, u16) {
+    let tmp = &mut tmp[..costs.len()];
     tmp[..=dmax].copy_from_slice(&costs[..=dmax]);
     tmp[dmax + 1..].fill(u16::MAX);
-    argmin_lr(tmp, None, mr, md)
+    argmin_lr_from(tmp, None, mr, md, base)
 }
 
 /// Uniqueness test (same meaning as OpenCV's `uniquenessRatio`): reject when a disparity more than

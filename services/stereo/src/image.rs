@@ -88,7 +88,9 @@ impl GrayImage {
 pub(crate) fn downsample2(src: GrayView<'_>, dst: &mut [u8]) {
     let (w2, h2) = (src.width() / 2, src.height() / 2);
     debug_assert_eq!(dst.len(), w2 * h2);
-    for (y, drow) in dst.chunks_exact_mut(w2.max(1)).enumerate().take(h2) {
+    use rayon::prelude::*;
+    let rows = dst.par_chunks_exact_mut(w2.max(1)).enumerate().take(h2);
+    rows.for_each(|(y, drow)| {
         let r0 = src.row(2 * y);
         let r1 = src.row(2 * y + 1);
         for (x, o) in drow.iter_mut().enumerate() {
@@ -96,5 +98,5 @@ pub(crate) fn downsample2(src: GrayView<'_>, dst: &mut [u8]) {
                 r0[2 * x] as u16 + r0[2 * x + 1] as u16 + r1[2 * x] as u16 + r1[2 * x + 1] as u16;
             *o = ((s + 2) >> 2) as u8;
         }
-    }
+    });
 }

@@ -64,6 +64,36 @@ fn block_matching_accuracy() {
     assert!(e.bad2_all < BAD2_ALL_BM, "{e:?}");
 }
 
+/// The coarse-to-fine search (default) against the full-range search at every pixel: it may not
+/// lose density, nor produce more bad pixels (small margins for rounding between builds).
+#[test]
+fn coarse_to_fine_is_as_accurate_as_full_search() {
+    let p = BmParams {
+        num_disparities: NDISP,
+        ..Default::default()
+    };
+    assert!(p.refine_margin >= 0, "coarse-to-fine is the default");
+    let fast = run(&mut BlockMatcher::new(p.clone(), 741, 500).unwrap());
+    let full = BmParams {
+        refine_margin: -1,
+        ..p
+    };
+    let full = run(&mut BlockMatcher::new(full, 741, 500).unwrap());
+    assert!(fast.density >= full.density - 0.002, "{fast:?} vs {full:?}");
+    assert!(
+        fast.bad1_valid <= full.bad1_valid + 0.001,
+        "{fast:?} vs {full:?}"
+    );
+    assert!(
+        fast.bad2_valid <= full.bad2_valid + 0.001,
+        "{fast:?} vs {full:?}"
+    );
+    assert!(
+        fast.bad2_all <= full.bad2_all + 0.001,
+        "{fast:?} vs {full:?}"
+    );
+}
+
 #[test]
 fn sgm_accuracy() {
     let p = SgmParams {

@@ -4,22 +4,8 @@
 
 use messages::{topics, GridGeometry, Header, MapCell, WorldMapHeader};
 use runtime::Ports;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
-
-struct Process {
-    child: Child,
-    domain: String,
-}
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        // SAFETY: kill(2) on our own child's pid.
-        unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
-        let _ = self.child.wait();
-        let _ = runtime::cleanup::remove_domain_leftovers(&self.domain);
-    }
-}
 
 fn model_path() -> String {
     format!("{}/models/contact.json", env!("CARGO_MANIFEST_DIR"))
@@ -58,23 +44,15 @@ fn a_missing_or_corrupt_model_is_a_clear_start_up_error() {
 #[test]
 fn world_maps_become_contacts_and_bad_input_is_rejected() {
     let domain = format!("tracktest{}", std::process::id());
-    std::env::set_var(runtime::domain::DOMAIN_ENV, &domain);
     let dir = std::env::temp_dir().join(&domain);
     std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("tracker.toml");
     std::fs::write(&config, format!("model = \"{}\"\n", model_path())).unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_tracker"))
-        .args(["run", "--config"])
-        .arg(&config)
-        .env(runtime::domain::DOMAIN_ENV, &domain)
-        .stdout(Stdio::null())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start tracker");
-    let _process = Process {
-        child,
-        domain: domain.clone(),
-    };
+    let _process = runtime::testing::ServiceProcess::run(
+        env!("CARGO_BIN_EXE_tracker"),
+        config.as_os_str(),
+        &domain,
+    );
     let node = runtime::tool_node("tracker_test").unwrap();
     let mut maps = topics::WORLD_MAP.publisher(&node).unwrap();
     let contacts = topics::CONTACTS.subscriber(&node).unwrap();

@@ -1,5 +1,6 @@
-//! Foxglove well-known schemas (JSON encoding) so a recording opens in Foxglove with images, grids,
-//! contacts, position and logs. These channels are for viewing only; replay uses the raw channels.
+//! Foxglove well-known schemas (JSON encoding), so recordings and the live bridge show images, grids,
+//! contacts, position and logs in Foxglove. One encoder for both: a recording and the live view of
+//! the same data look the same. These channels are for viewing only; replay uses the raw channels.
 //! Bytes fields (`data`) are base64 strings, as Foxglove expects for JSON messages.
 
 use base64::Engine;

@@ -1,0 +1,121 @@
+//! `perception bench hazard`: time per frame of the hazard map from a 1280x960 disparity image (a
+//! ray-cast sea with buoys and matcher-like noise), on the rayon pool and on one thread, in one run.
+
+use crate::hazard::{Frame, GridConfig, HazardConfig, HazardMapper};
+use crate::model::HazardModel;
+use crate::synthetic::{Cylinder, Scene};
+use anyhow::Context;
+use messages::{MapCell, Pose};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Frames timed per configuration.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Grid side in cells (0.5 m each).
+    #[arg(long, default_value_t = 400)]
+    pub grid: u32,
+    /// Hazard model (default: the committed one).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+}
+
+pub fn default_model_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/hazard.json")
+}
+
+fn scene() -> Scene {
+    let mut s = Scene::hammerhead(1280, 960);
+    s.noise_px = 0.3;
+    for k in 0..12 {
+        let range = 15.0 + 7.0 * k as f64;
+        let bearing = (k as f64 * 0.7).sin() * 0.4;
+        s.objects.push(Cylinder {
+            east: range * (90f64.to_radians() + bearing).cos(),
+            north: range * (90f64.to_radians() + bearing).sin(),
+            radius: 0.5 + 0.1 * (k % 3) as f64,
+            height: 1.0 + 0.5 * (k % 4) as f64,
+        });
+    }
+    s
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    let path = args.model.clone().unwrap_or_else(default_model_path);
+    let model = HazardModel::load(&path)?;
+    let config = HazardConfig {
+        grid: GridConfig {
+            width: args.grid,
+            height: args.grid,
+            resolution_m: 0.5,
+        },
+        ..Default::default()
+    };
+    let s = scene();
+    let mut disparity = Vec::new();
+    s.render(&mut disparity);
+    let valid = disparity.iter().filter(|d| d.is_finite()).count();
+    println!(
+        "hazard map: {}x{} disparity ({:.0}% valid), {}x{} grid at 0.5 m, row/col step {}/{}, {} threads",
+        s.width,
+        s.height,
+        100.0 * valid as f64 / disparity.len() as f64,
+        args.grid,
+        args.grid,
+        config.projection.row_step,
+        config.projection.col_step,
+        rayon::current_num_threads()
+    );
+    let mut medians = Vec::new();
+    for threads in [0usize, 1] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .context("thread pool")?;
+        let mut mapper =
+            HazardMapper::new(config.clone(), model.clone()).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let mut out =
+            vec![MapCell::default(); config.grid.width as usize * config.grid.height as usize];
+        let mut times = Vec::with_capacity(args.frames);
+        let mut summary = None;
+        for i in 0..args.frames + 3 {
+            // The vessel creeps north so the grid scrolls and the memory is exercised.
+            let mut header = s.header(1_000_000_000 + i as u64 * 100_000_000, "hh_left");
+            header.stabilized_pose.position[1] = 0.4 * i as f64;
+            let frame = Frame {
+                header: &header,
+                disparity: &disparity,
+                vessel: Pose {
+                    position: header.stabilized_pose.position,
+                    yaw: header.stabilized_pose.yaw,
+                    ..Pose::default()
+                },
+            };
+            let t = Instant::now();
+            let r = pool.install(|| mapper.process(&frame, &mut out))?;
+            if i >= 3 {
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            summary = Some(r);
+        }
+        times.sort_by(f64::total_cmp);
+        let (median, p90) = (percentile(&times, 0.5), percentile(&times, 0.9));
+        medians.push(median);
+        let s = summary.unwrap();
+        println!(
+            "  {:>9}: median {median:.2} ms, p90 {p90:.2} ms per frame ({} points, {} observed cells, {} hazard cells)",
+            if threads == 0 { "rayon" } else { "1 thread" },
+            s.points,
+            s.observed_cells,
+            s.hazard_cells
+        );
+    }
+    println!("  speed-up on the pool: {:.2}x", medians[1] / medians[0]);
+    Ok(())
+}

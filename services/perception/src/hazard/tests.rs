@@ -1,0 +1,304 @@
+use super::*;
+use crate::model::N_FEATURES;
+use crate::model::{HazardModel, MODEL_VERSION};
+use crate::synthetic::{Cylinder, Scene};
+
+/// A hand-set model: hazard when the cell holds about a metre of elevated surface.
+fn model() -> HazardModel {
+    let mut weights = vec![0.0; N_FEATURES];
+    weights[0] = 3.0; // max height
+    weights[3] = 4.0; // elevated extent
+    HazardModel {
+        version: MODEL_VERSION,
+        features: crate::model::FEATURES
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        elevated_height_m: 0.3,
+        mean: vec![0.0; N_FEATURES],
+        std: vec![1.0; N_FEATURES],
+        weights,
+        bias: -4.0,
+        metrics: Default::default(),
+    }
+}
+
+fn config() -> HazardConfig {
+    HazardConfig {
+        grid: GridConfig {
+            width: 200,
+            height: 200,
+            resolution_m: 0.5,
+        },
+        ..Default::default()
+    }
+}
+
+fn vessel_of(h: &DisparityHeader) -> Pose {
+    Pose {
+        position: h.stabilized_pose.position,
+        yaw: h.stabilized_pose.yaw,
+        ..Pose::default()
+    }
+}
+
+fn map(mapper: &mut HazardMapper, h: &DisparityHeader, d: &[f32]) -> (Vec<MapCell>, FrameSummary) {
+    let mut out = vec![
+        MapCell::default();
+        mapper.config().grid.width as usize * mapper.config().grid.height as usize
+    ];
+    let frame = Frame {
+        header: h,
+        disparity: d,
+        vessel: vessel_of(h),
+    };
+    let s = mapper.process(&frame, &mut out).unwrap();
+    (out, s)
+}
+
+/// The highest cell within `radius` metres of (east, north): (max height m, hazard, distance m).
+fn best_near(
+    out: &[MapCell],
+    g: &GridGeometry,
+    east: f64,
+    north: f64,
+    radius: f64,
+) -> (f64, u8, f64) {
+    let mut best = (f64::MIN, 0, f64::MAX);
+    for row in 0..g.height {
+        for col in 0..g.width {
+            let c = out[(row * g.width + col) as usize];
+            let p = g.cell_center(col, row);
+            let dist = (p[0] - east).hypot(p[1] - north);
+            if c.observed > 0 && dist <= radius && c.max_height_cm as f64 / 100.0 > best.0 {
+                best = (c.max_height_cm as f64 / 100.0, c.hazard, dist);
+            }
+        }
+    }
+    best
+}
+
+#[test]
+fn a_buoy_lands_in_its_cell_at_its_height() {
+    let mut s = Scene::hammerhead(640, 480);
+    s.position = [12.0, -7.0];
+    s.heading_rad = 60f64.to_radians();
+    // 30 m out, 10 degrees left of the camera heading.
+    let bearing = s.heading_rad + 10f64.to_radians();
+    let (east, north) = (12.0 + 30.0 * bearing.cos(), -7.0 + 30.0 * bearing.sin());
+    s.objects.push(Cylinder {
+        east,
+        north,
+        radius: 0.4,
+        height: 1.6,
+    });
+    let mut d = Vec::new();
+    s.render(&mut d);
+    let h = s.header(1_000_000_000, "hh_left");
+    let mut mapper = HazardMapper::new(config(), model()).unwrap();
+    let (out, summary) = map(&mut mapper, &h, &d);
+    assert_eq!(summary.attitude, AttitudeSource::WaterPlane);
+    let (height, hazard, dist) = best_near(&out, &summary.grid, east, north, 1.0);
+    assert!((height - 1.6).abs() < 0.1, "height {height}");
+    assert!(dist <= 0.75, "highest cell {dist} m from the buoy");
+    assert!(hazard >= 128, "hazard {hazard}");
+    // Nothing else stands out of the water.
+    for row in 0..summary.grid.height {
+        for col in 0..summary.grid.width {
+            let p = summary.grid.cell_center(col, row);
+            let c = out[(row * summary.grid.width + col) as usize];
+            if (p[0] - east).hypot(p[1] - north) > 1.5 {
+                assert!(c.max_height_cm.abs() <= 5, "cell at {p:?}: {c:?}");
+                assert!(c.hazard < 128, "cell at {p:?}: {c:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn flat_water_gives_no_hazard_and_unknown_elsewhere() {
+    let s = Scene::hammerhead(640, 480);
+    let mut d = Vec::new();
+    s.render(&mut d);
+    let h = s.header(1_000_000_000, "hh_left");
+    let mut mapper = HazardMapper::new(config(), model()).unwrap();
+    let (out, summary) = map(&mut mapper, &h, &d);
+    assert!(summary.observed_cells > 1000, "{summary:?}");
+    assert_eq!(summary.hazard_cells, 0);
+    let observed = out.iter().filter(|c| c.observed > 0);
+    assert!(observed
+        .clone()
+        .all(|c| c.max_height_cm.abs() <= 2 && c.cost < 20));
+    // Behind the camera nothing is seen: unknown cost.
+    let (c, r) = summary.grid.cell_of(0.0, -20.0).unwrap();
+    assert_eq!(
+        out[(r * summary.grid.width + c) as usize].cost,
+        MapCell::UNKNOWN_COST
+    );
+}
+
+#[test]
+fn mount_yaw_and_lever_arm_are_added_to_the_ins_heading_and_position() {
+    // Level camera: one pixel on the optical axis at 25 m.
+    let mut h = Scene::hammerhead(64, 48).header(1, "hh_left");
+    h.plane.normal = [0.0, -1.0, 0.0];
+    h.plane.offset = 3.0;
+    h.stabilized_pose = Pose {
+        position: [100.0, 50.0, 0.0],
+        yaw: 90f64.to_radians(),
+        ..Pose::default()
+    };
+    h.camera.mount = Pose {
+        position: [0.5, 0.4, 3.0],
+        yaw: 20f64.to_radians(),
+        ..Pose::default()
+    };
+    let xf = CameraToWorld::from_header(&h).unwrap();
+    let p = xf.apply([0.0, 0.0, 25.0]);
+    let yaw = 110f64.to_radians();
+    // Lever arm (0.5 forward, 0.4 left) turned by the 90 degree heading: (-0.4, +0.5).
+    let want = [
+        100.0 - 0.4 + 25.0 * yaw.cos(),
+        50.0 + 0.5 + 25.0 * yaw.sin(),
+        3.0,
+    ];
+    for k in 0..3 {
+        assert!((p[k] as f64 - want[k]).abs() < 1e-3, "{p:?} vs {want:?}");
+    }
+    // Without a plane the INS attitude is used: pitched 10 degrees nose down, the same ray drops.
+    h.plane.valid = 0;
+    h.stabilized_pose.pitch = 10f64.to_radians();
+    h.stabilized_pose.position[2] = 0.0;
+    let xf = CameraToWorld::from_header(&h).unwrap();
+    assert_eq!(xf.source, AttitudeSource::Ins);
+    let p = xf.apply([0.0, 0.0, 25.0]);
+    let drop = 3.0 - 25.0 * 10f64.to_radians().sin();
+    assert!(
+        (p[2] as f64 - drop).abs() < 0.15,
+        "{p:?}, want height {drop}"
+    );
+}
+
+#[test]
+fn invalid_frames_are_refused() {
+    let s = Scene::hammerhead(64, 48);
+    let mut d = Vec::new();
+    s.render(&mut d);
+    let mut mapper = HazardMapper::new(config(), model()).unwrap();
+    let mut out = vec![MapCell::default(); 200 * 200];
+    let h = s.header(1, "hh_left");
+    let frame = |h: &DisparityHeader, d: &[f32]| -> Result<(), FrameError> {
+        let f = Frame {
+            header: h,
+            disparity: d,
+            vessel: vessel_of(h),
+        };
+        mapper.check(&f).map(|_| ())
+    };
+    assert!(matches!(frame(&h, &d[1..]), Err(FrameError::Size { .. })));
+    let mut bad = h;
+    bad.width = 0;
+    assert_eq!(frame(&bad, &[]), Err(FrameError::Empty));
+    let mut bad = h;
+    bad.camera.fx = 0.0;
+    assert!(matches!(frame(&bad, &d), Err(FrameError::Geometry(_))));
+    let mut bad = h;
+    bad.plane.normal = [0.0, -2.0, 0.0];
+    assert!(matches!(frame(&bad, &d), Err(FrameError::Geometry(_))));
+    let mut bad = h;
+    bad.plane.offset = -1.0;
+    assert!(matches!(frame(&bad, &d), Err(FrameError::Geometry(_))));
+    let f = Frame {
+        header: &h,
+        disparity: &d,
+        vessel: vessel_of(&h),
+    };
+    assert!(matches!(
+        mapper.process(&f, &mut out[1..]),
+        Err(FrameError::Output { .. })
+    ));
+}
+
+#[test]
+fn an_isolated_mismatch_is_dropped_where_an_obstacle_would_give_many_points() {
+    let s = Scene::hammerhead(640, 480);
+    let mut d = Vec::new();
+    s.render(&mut d);
+    // One wrong disparity near the horizon: a point metres above the water 20 m out.
+    let (u, v) = (320usize, 200usize);
+    d[v * 640 + u] = 554.0 / 20.0;
+    let h = s.header(1, "hh_left");
+    let mut mapper = HazardMapper::new(config(), model()).unwrap();
+    let (out, summary) = map(&mut mapper, &h, &d);
+    assert_eq!(summary.isolated_cells, 1, "{summary:?}");
+    assert_eq!(summary.hazard_cells, 0);
+    assert!(out.iter().any(|c| c.max_height_cm > 200 && c.hazard == 0));
+}
+
+#[test]
+fn memory_follows_the_world_while_the_vessel_moves() {
+    let mut s = Scene::hammerhead(640, 480);
+    s.objects.push(Cylinder {
+        east: 2.0,
+        north: 25.0,
+        radius: 0.5,
+        height: 1.2,
+    });
+    let mut mapper = HazardMapper::new(config(), model()).unwrap();
+    let mut d = Vec::new();
+    let mut history = Vec::new();
+    let mut grid = GridGeometry::default();
+    for k in 0..4 {
+        // 2.3 m north per frame: the grid re-centres, the buoy stays put in the world.
+        s.position = [0.0, 2.3 * k as f64];
+        s.render(&mut d);
+        let h = s.header(1_000_000_000 + k * 200_000_000, "hh_left");
+        let (_, summary) = map(&mut mapper, &h, &d);
+        grid = summary.grid;
+        let (c, r) = summary.grid.cell_of(2.0, 25.0).unwrap();
+        let best = mapper
+            .scored_cells()
+            .iter()
+            .filter(|sc| {
+                let (c2, r2) = (sc.cell % summary.grid.width, sc.cell / summary.grid.width);
+                c2.abs_diff(c) <= 1 && r2.abs_diff(r) <= 1
+            })
+            .map(|sc| sc.features[6])
+            .fold(0f32, f32::max);
+        history.push(best);
+    }
+    assert_eq!(history[0], 0.0);
+    assert!(history[1] > 0.3 && history[3] > history[1], "{history:?}");
+    // Open water away from the buoy has no history.
+    let away = |sc: &&ScoredCell| {
+        let p = grid.cell_center(sc.cell % grid.width, sc.cell / grid.width);
+        (p[0] - 2.0).hypot(p[1] - 25.0) > 2.0
+    };
+    assert!(mapper
+        .scored_cells()
+        .iter()
+        .filter(away)
+        .all(|sc| sc.features[6] == 0.0));
+    // Another head keeps its own memory.
+    let h = s.header(1_900_000_000, "hh_right");
+    map(&mut mapper, &h, &d);
+    assert!(mapper.scored_cells().iter().all(|sc| sc.features[6] == 0.0));
+}
+
+#[test]
+fn same_input_same_map() {
+    let mut s = Scene::hammerhead(640, 480);
+    s.noise_px = 0.4;
+    s.objects.push(Cylinder {
+        east: -3.0,
+        north: 40.0,
+        radius: 0.6,
+        height: 2.0,
+    });
+    let mut d = Vec::new();
+    s.render(&mut d);
+    let h = s.header(1, "hh_left");
+    let a = map(&mut HazardMapper::new(config(), model()).unwrap(), &h, &d).0;
+    let b = map(&mut HazardMapper::new(config(), model()).unwrap(), &h, &d).0;
+    assert!(a == b);
+}

@@ -1,0 +1,272 @@
+//! The per-cell hazard classifier: logistic regression over a few physical cell features.
+//!
+//! Why logistic regression: the features are already physical and monotone in "how much solid
+//! surface stands above the water here" (height, spread, vertical extent, persistence), so a linear
+//! decision surface on standardized features separates hazard from wave and matcher noise well; the
+//! output is a calibrated probability (what `MapCell::hazard` means); the model is ten numbers in a
+//! reviewable JSON file; training is convex and deterministic (same data, same model) and takes
+//! seconds. A tree ensemble would fit the training scenarios more closely but is larger, less
+//! calibrated, and harder to check by eye with the little labelled data the simulator gives.
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Cell features in model order. See [`crate::hazard`] for how each is computed. Range is
+/// deliberately not a feature: in the labelled scenarios most distant hazards are shores, and a
+/// model that learns "far and high is hazard" fails on open water; range enters only through the
+/// normalisations (expected point density and range smear).
+pub const FEATURES: [&str; N_FEATURES] = [
+    "max_height_m",
+    "mean_height_m",
+    "height_spread_m",
+    "elevated_extent_m",
+    "elevated_fraction",
+    "min_height_m",
+    "history",
+    "neighbour_support",
+    "water_margin_px",
+];
+pub const N_FEATURES: usize = 9;
+
+pub type Features = [f32; N_FEATURES];
+
+/// Model file format version.
+pub const MODEL_VERSION: u32 = 1;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    #[error("cannot read hazard model {path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("hazard model {path} is not a valid model file: {source}")]
+    Parse {
+        path: String,
+        source: serde_json::Error,
+    },
+    #[error("hazard model {path}: {reason}")]
+    Invalid { path: String, reason: String },
+}
+
+/// Held-out figures recorded with the model so the file says how good it is.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ModelMetrics {
+    pub train_scenarios: Vec<String>,
+    pub test_scenarios: Vec<String>,
+    pub train_cells: usize,
+    pub test_cells: usize,
+    pub test_precision: f64,
+    pub test_recall: f64,
+    pub train_precision: f64,
+    pub train_recall: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct HazardModel {
+    pub version: u32,
+    /// Must equal [`FEATURES`]: a model is only valid for the features it was trained on.
+    pub features: Vec<String>,
+    /// Points higher than this above the water count as elevated (m); part of the features.
+    pub elevated_height_m: f32,
+    pub mean: Vec<f32>,
+    pub std: Vec<f32>,
+    pub weights: Vec<f32>,
+    pub bias: f32,
+    #[serde(default)]
+    pub metrics: ModelMetrics,
+}
+
+impl HazardModel {
+    /// Loads and validates a model file.
+    pub fn load(path: &Path) -> Result<Self, ModelError> {
+        let p = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            path: p.clone(),
+            source,
+        })?;
+        let model: HazardModel =
+            serde_json::from_str(&text).map_err(|source| ModelError::Parse {
+                path: p.clone(),
+                source,
+            })?;
+        model
+            .validate()
+            .map_err(|reason| ModelError::Invalid { path: p, reason })?;
+        Ok(model)
+    }
+
+    pub fn save(&self, path: &Path) -> std::io::Result<()> {
+        let text = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
+        std::fs::write(path, text + "\n")
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        if self.version != MODEL_VERSION {
+            return Err(format!(
+                "version {} (this build reads {MODEL_VERSION})",
+                self.version
+            ));
+        }
+        if self.features.iter().map(String::as_str).ne(FEATURES) {
+            return Err(format!(
+                "features {:?} differ from this build's {FEATURES:?}",
+                self.features
+            ));
+        }
+        for (name, v) in [
+            ("mean", &self.mean),
+            ("std", &self.std),
+            ("weights", &self.weights),
+        ] {
+            if v.len() != N_FEATURES {
+                return Err(format!(
+                    "{name} has {} values, expected {N_FEATURES}",
+                    v.len()
+                ));
+            }
+            if v.iter().any(|x| !x.is_finite()) {
+                return Err(format!("{name} has a non-finite value"));
+            }
+        }
+        if self.std.iter().any(|s| *s <= 0.0) {
+            return Err("std must be > 0".into());
+        }
+        if !self.bias.is_finite() {
+            return Err("bias is not finite".into());
+        }
+        if !(self.elevated_height_m.is_finite() && self.elevated_height_m > 0.0) {
+            return Err("elevated_height_m must be > 0".into());
+        }
+        Ok(())
+    }
+
+    /// Log-odds of a hazard.
+    #[inline]
+    pub fn logit(&self, x: &Features) -> f32 {
+        let terms = x.iter().zip(&self.mean).zip(&self.std).zip(&self.weights);
+        terms.fold(self.bias, |z, (((x, m), s), w)| z + w * (x - m) / s)
+    }
+
+    /// Hazard probability of a cell.
+    #[inline]
+    pub fn probability(&self, x: &Features) -> f32 {
+        1.0 / (1.0 + (-self.logit(x)).exp())
+    }
+
+    /// Fits a model by full-batch gradient descent on the class-weighted log loss with a small L2
+    /// penalty. Deterministic: same samples in the same order give the same model.
+    pub fn fit(samples: &[(Features, bool)], elevated_height_m: f32, iterations: usize) -> Self {
+        let n = samples.len().max(1) as f64;
+        let mut mean = [0f64; N_FEATURES];
+        let mut var = [0f64; N_FEATURES];
+        for (x, _) in samples {
+            for i in 0..N_FEATURES {
+                mean[i] += x[i] as f64 / n;
+            }
+        }
+        for (x, _) in samples {
+            for i in 0..N_FEATURES {
+                var[i] += (x[i] as f64 - mean[i]).powi(2) / n;
+            }
+        }
+        let std: Vec<f64> = var.iter().map(|v| v.sqrt().max(1e-3)).collect();
+        let z: Vec<([f64; N_FEATURES], f64)> = samples
+            .iter()
+            .map(|(x, y)| {
+                let mut s = [0f64; N_FEATURES];
+                for i in 0..N_FEATURES {
+                    s[i] = (x[i] as f64 - mean[i]) / std[i];
+                }
+                (s, if *y { 1.0 } else { 0.0 })
+            })
+            .collect();
+        // Hazard cells are rare: weight the classes equally so the rare one is not ignored.
+        let positives = z.iter().filter(|(_, y)| *y > 0.5).count().max(1) as f64;
+        let negatives = (z.len() as f64 - positives).max(1.0);
+        let (wp, wn) = (n / (2.0 * positives), n / (2.0 * negatives));
+        let l2 = 1e-3;
+        let mut w = [0f64; N_FEATURES];
+        let mut b = 0f64;
+        let rate = 0.5;
+        for _ in 0..iterations {
+            let mut gw = [0f64; N_FEATURES];
+            let mut gb = 0f64;
+            for (x, y) in &z {
+                let logit = b + (0..N_FEATURES).map(|i| w[i] * x[i]).sum::<f64>();
+                let p = 1.0 / (1.0 + (-logit).exp());
+                let weight = if *y > 0.5 { wp } else { wn };
+                let e = weight * (p - y);
+                for i in 0..N_FEATURES {
+                    gw[i] += e * x[i];
+                }
+                gb += e;
+            }
+            for i in 0..N_FEATURES {
+                w[i] -= rate * (gw[i] / n + l2 * w[i]);
+            }
+            b -= rate * gb / n;
+        }
+        HazardModel {
+            version: MODEL_VERSION,
+            features: FEATURES.iter().map(|s| s.to_string()).collect(),
+            elevated_height_m,
+            mean: mean.iter().map(|v| *v as f32).collect(),
+            std: std.iter().map(|v| *v as f32).collect(),
+            weights: w.iter().map(|v| *v as f32).collect(),
+            bias: b as f32,
+            metrics: ModelMetrics::default(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fit_separates_a_threshold_on_one_feature() {
+        let mut samples = Vec::new();
+        for k in 0..200 {
+            let h = k as f32 * 0.02;
+            let mut x = [0f32; N_FEATURES];
+            x[0] = h;
+            x[5] = (k % 7) as f32 * 0.1;
+            samples.push((x, h > 1.5));
+        }
+        let m = HazardModel::fit(&samples, 0.3, 2000);
+        m.validate().unwrap();
+        let mut lo = [0f32; N_FEATURES];
+        lo[0] = 0.5;
+        let mut hi = lo;
+        hi[0] = 3.0;
+        assert!(m.probability(&lo) < 0.1, "{}", m.probability(&lo));
+        assert!(m.probability(&hi) > 0.9, "{}", m.probability(&hi));
+    }
+
+    #[test]
+    fn corrupt_or_mismatched_files_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        assert!(matches!(
+            HazardModel::load(&path),
+            Err(ModelError::Io { .. })
+        ));
+        std::fs::write(&path, "{ not json").unwrap();
+        assert!(matches!(
+            HazardModel::load(&path),
+            Err(ModelError::Parse { .. })
+        ));
+        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 1);
+        m.weights.pop();
+        m.save(&path).unwrap();
+        let e = HazardModel::load(&path).unwrap_err().to_string();
+        assert!(e.contains("weights"), "{e}");
+        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 1);
+        m.features[0] = "height".into();
+        m.save(&path).unwrap();
+        assert!(HazardModel::load(&path).is_err());
+    }
+}

@@ -1,0 +1,167 @@
+//! The real `perception` process: synthetic disparity of a buoy 30 m ahead goes in, a local map with
+//! a hazard cell at the buoy comes out; a disparity of the wrong size is rejected in the heartbeat
+//! while the service keeps mapping; a missing or corrupt model stops it at start with a clear error.
+
+use messages::{topics, Heartbeat, LocalMapHeader, MapCell};
+use perception::synthetic::{Cylinder, Scene};
+use runtime::Ports;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn model_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/hazard.json")
+}
+
+fn write_config(dir: &Path, model: &Path) -> PathBuf {
+    let config = dir.join("perception.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "model = {:?}\nheads = [\"hh_left\"]\nframe_deadline_ms = 2000\n[grid]\nwidth = 200\nheight = 200\nresolution_m = 0.5\n",
+            model.display().to_string()
+        ),
+    )
+    .unwrap();
+    config
+}
+
+/// The hazard cell nearest (east, north) in a map, and its distance (m).
+fn nearest_hazard(h: &LocalMapHeader, cells: &[MapCell], east: f64, north: f64) -> Option<f64> {
+    let g = &h.grid;
+    let mut best: Option<f64> = None;
+    for row in 0..g.height {
+        for col in 0..g.width {
+            let c = &cells[(row * g.width + col) as usize];
+            if c.observed > 0 && c.hazard >= 128 {
+                let p = g.cell_center(col, row);
+                let d = (p[0] - east).hypot(p[1] - north);
+                best = Some(best.map_or(d, |b: f64| b.min(d)));
+            }
+        }
+    }
+    best
+}
+
+#[test]
+fn maps_a_buoy_and_rejects_a_wrong_size_frame() {
+    let domain = format!("perctest{}", std::process::id());
+    let dir = tempfile::tempdir().unwrap();
+    let config = write_config(dir.path(), &model_path());
+    let _process = runtime::testing::ServiceProcess::run(
+        env!("CARGO_BIN_EXE_perception"),
+        config.as_os_str(),
+        &domain,
+    );
+
+    let node = runtime::tool_node("perception_test").unwrap();
+    let mut disparity_pub = topics::DISPARITY.publisher(&node).unwrap();
+    let maps = topics::LOCAL_MAP.subscriber(&node).unwrap();
+    let beats = topics::HEARTBEAT.subscriber(&node).unwrap();
+
+    // Vessel at (5, 10) heading north; the buoy 30 m dead ahead.
+    let mut scene = Scene::hammerhead(640, 480);
+    scene.position = [5.0, 10.0];
+    scene.noise_px = 0.2;
+    scene.objects.push(Cylinder {
+        east: 5.0,
+        north: 40.0,
+        radius: 0.5,
+        height: 1.5,
+    });
+    let mut image = Vec::new();
+    scene.render(&mut image);
+    let mut stamp = 5_000_000_000u64;
+    let mut publish = |head: &str, stamp: u64, values: &[f32]| {
+        let mut header = scene.header(stamp, head);
+        header.hdr.seq = disparity_pub.next_seq();
+        let mut sample = disparity_pub.loan_slice(values.len()).unwrap();
+        sample.payload_mut().copy_from_slice(values);
+        *sample.user_header_mut() = header;
+        disparity_pub.send(sample).unwrap();
+    };
+
+    // Publish frames (a head the config does not map, then ours) until a map shows the buoy.
+    let end = Instant::now() + Duration::from_secs(15);
+    let mut found = None;
+    while found.is_none() && Instant::now() < end {
+        stamp += 100_000_000;
+        publish("hh_right", stamp, &image);
+        publish("hh_left", stamp, &image);
+        std::thread::sleep(Duration::from_millis(50));
+        while let Some(sample) = maps.receive().unwrap() {
+            let h = *sample.user_header();
+            assert_eq!(sample.payload().len(), 200 * 200);
+            assert_eq!(h.grid.width, 200);
+            assert!((h.vessel.position[0] - 5.0).abs() < 1e-9);
+            // Only hh_left frames are mapped and each keeps its stamp.
+            assert_eq!(h.hdr.stamp_ns % 100_000_000, 0);
+            if let Some(d) = nearest_hazard(&h, sample.payload(), 5.0, 40.0) {
+                if d <= 1.0 {
+                    found = Some((h, d));
+                }
+            }
+        }
+    }
+    let (h, d) = found.expect("no local map with a hazard cell within 1 m of the buoy");
+    assert!(d <= 1.0);
+    assert!(h.frame_seq == 0 && h.hdr.source.as_str() == "perception");
+
+    // A frame whose payload does not match its header is rejected, and mapping goes on.
+    stamp += 100_000_000;
+    let bad_stamp = stamp;
+    publish("hh_left", bad_stamp, &image[..1000]);
+    let end = Instant::now() + Duration::from_secs(10);
+    let mut rejected: Option<Heartbeat> = None;
+    while rejected.is_none() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(20));
+        while let Some(beat) = beats.receive().unwrap() {
+            let b = *beat.payload();
+            if b.hdr.source.as_str() == "perception" && b.rejected >= 1 {
+                rejected = Some(b);
+            }
+        }
+    }
+    let beat = rejected.expect("no heartbeat reporting the rejected frame");
+    assert!(
+        beat.last_error.as_str().contains("does not match"),
+        "{}",
+        beat.last_error.as_str()
+    );
+    assert_eq!(beat.last_input_stamp_ns, bad_stamp);
+    let end = Instant::now() + Duration::from_secs(10);
+    let mut after = false;
+    while !after && Instant::now() < end {
+        stamp += 100_000_000;
+        publish("hh_left", stamp, &image);
+        std::thread::sleep(Duration::from_millis(50));
+        while let Some(sample) = maps.receive().unwrap() {
+            after |= sample.user_header().hdr.stamp_ns > bad_stamp;
+        }
+    }
+    assert!(after, "no local map after the rejected frame");
+}
+
+#[test]
+fn a_missing_or_corrupt_model_stops_the_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let corrupt = dir.path().join("corrupt.json");
+    std::fs::write(&corrupt, "{\"version\": 1, \"weights\": [").unwrap();
+    for (model, expect) in [
+        (dir.path().join("missing.json"), "cannot read hazard model"),
+        (corrupt, "not a valid model file"),
+    ] {
+        let domain = format!("perctestm{}", std::process::id());
+        let config = write_config(dir.path(), &model);
+        let out = Command::new(env!("CARGO_BIN_EXE_perception"))
+            .args(["run", "--config"])
+            .arg(&config)
+            .env(runtime::domain::DOMAIN_ENV, &domain)
+            .output()
+            .expect("run perception");
+        let _ = runtime::cleanup::remove_domain_leftovers(&domain);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expect), "{err}");
+    }
+}
