@@ -153,7 +153,10 @@ fn run(config_path: PathBuf, heads: Vec<String>) -> anyhow::Result<()> {
                     tracing::debug!(?summary, "local map of one head");
                     frame.add_scratch(h.head.as_str(), map_header);
                 }
-                Err(e) => health.reject(stamp, &format!("{}: {e}", what())),
+                Err(e) => {
+                    health.reject(stamp, &format!("{}: {e}", what()));
+                    frame.skip(h.head.as_str(), stamp);
+                }
             }
             if frame.complete() {
                 publish(&mut frame, frame_started, health)?;

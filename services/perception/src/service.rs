@@ -227,6 +227,8 @@ impl Perception {
 pub struct FrameMerge {
     heads: Vec<String>,
     seen: Vec<bool>,
+    /// The frame `seen` refers to (a head can be accounted for before any map of the frame).
+    seen_stamp: Option<u64>,
     header: Option<LocalMapHeader>,
     cells: Vec<MapCell>,
     /// Where the caller maps one head's frame before [`FrameMerge::add_scratch`].
@@ -239,6 +241,7 @@ impl FrameMerge {
         Self {
             heads: heads.to_vec(),
             seen: vec![false; heads.len()],
+            seen_stamp: None,
             header: None,
             cells: vec![MapCell::default(); cells],
             scratch: vec![MapCell::default(); cells],
@@ -252,6 +255,7 @@ impl FrameMerge {
 
     /// Merges the scratch map of `head` into the frame (which must have the same stamp and grid).
     pub fn add_scratch(&mut self, head: &str, header: LocalMapHeader) {
+        self.mark_seen(head, header.hdr.stamp_ns);
         match &self.header {
             Some(h) if h.grid == header.grid => {
                 for (acc, new) in self.cells.iter_mut().zip(&self.scratch) {
@@ -264,6 +268,19 @@ impl FrameMerge {
                 self.cells.copy_from_slice(&self.scratch);
                 self.header = Some(header);
             }
+        }
+    }
+
+    /// `head` delivered nothing usable for the frame at `stamp` (its input was rejected): the frame
+    /// is complete without it rather than waiting out the head timeout.
+    pub fn skip(&mut self, head: &str, stamp: u64) {
+        self.mark_seen(head, stamp);
+    }
+
+    fn mark_seen(&mut self, head: &str, stamp: u64) {
+        if self.seen_stamp != Some(stamp) {
+            self.seen.fill(false);
+            self.seen_stamp = Some(stamp);
         }
         if let Some(i) = self.heads.iter().position(|h| h == head) {
             self.seen[i] = true;
@@ -279,6 +296,7 @@ impl FrameMerge {
     pub fn take(&mut self) -> Option<(LocalMapHeader, &[MapCell])> {
         let header = self.header.take()?;
         self.seen.fill(false);
+        self.seen_stamp = None;
         Some((header, &self.cells))
     }
 }
@@ -352,6 +370,25 @@ mod tests {
         assert_eq!(cells[1], cell(90, 4));
         assert_eq!(cells[2], cell(10, 1));
         assert!(merge.take().is_none() && !merge.complete());
+    }
+
+    #[test]
+    fn a_rejected_head_completes_its_frame_but_not_the_next() {
+        let heads = vec!["hh_left".to_string(), "hh_right".to_string()];
+        let mut merge = FrameMerge::new(&heads, 1);
+        let mut header = LocalMapHeader::default();
+        // The left head of frame 7 was rejected before the right one arrived.
+        merge.skip("hh_left", 7);
+        assert!(!merge.complete(), "no map of frame 7 yet");
+        header.hdr.stamp_ns = 7;
+        merge.add_scratch("hh_right", header);
+        assert!(merge.complete());
+        assert!(merge.take().is_some());
+        // A skip of frame 8's left head says nothing about frame 9.
+        merge.skip("hh_left", 8);
+        header.hdr.stamp_ns = 9;
+        merge.add_scratch("hh_right", header);
+        assert!(!merge.complete());
     }
 
     #[test]
