@@ -164,6 +164,11 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
         let h = &mut sim.world.heads[index];
         h.width = args.width;
         h.height = args.height;
+        // The classifier sees map cells, not pixels, so the heads are trained as ideal pairs looking
+        // the same way: labels then line up pixel for pixel with the disparity of an ideal
+        // calibration. The toed heads' geometry is the stereo service's (rectification) concern.
+        h.toe = 0.0;
+        h.oversize = 1.0;
         let h = h.clone();
         let calib = Calibration::ideal(
             h.width as usize,
