@@ -165,8 +165,9 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
         h.width = args.width;
         h.height = args.height;
         // The classifier sees map cells, not pixels, so the heads are trained as ideal pairs looking
-        // the same way: labels then line up pixel for pixel with the disparity of an ideal
-        // calibration. The toed heads' geometry is the stereo service's (rectification) concern.
+        // the same way (the whole head yawed by the toe): labels then line up pixel for pixel with
+        // the disparity of an ideal calibration. The toed geometry is the stereo service's concern.
+        h.mount.rpy.z += h.toe;
         h.toe = 0.0;
         h.oversize = 1.0;
         let h = h.clone();
