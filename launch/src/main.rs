@@ -101,7 +101,7 @@ enum Cmd {
     },
     /// Reproduce the project's performance figures on this machine.
     Bench {
-        /// Which benchmark: ipc, recorder, sim.
+        /// Which benchmark: ipc, recorder, sim, pipeline, stereo, hazard, mapper, tracker.
         name: String,
         /// One JSON object per line per figure.
         #[arg(long)]

@@ -41,39 +41,81 @@ impl Figure {
     }
 }
 
-pub const NAMES: &[&str] = &["ipc", "recorder", "sim", "pipeline", "mapper", "tracker"];
-
-/// Benchmarks that live in a service's own binary (`<program> bench ...`): `usv bench` runs them so
-/// every figure has one entry point. Arguments may name checkout files (`@` + relative path).
-const SERVICE_BENCHES: &[(&str, &str, &[&str])] = &[
-    ("mapper", "mapper", &[]),
-    (
-        "tracker",
-        "tracker",
-        &["--config", "@launch/sets/tracker.toml"],
-    ),
+pub const NAMES: &[&str] = &[
+    "ipc", "recorder", "sim", "pipeline", "stereo", "hazard", "mapper", "tracker",
 ];
 
-/// Runs a service's own benchmark if `name` is one; its output goes straight to the terminal.
+/// A benchmark that lives in another program (`<program> <args...>`): `usv bench` runs it so every
+/// figure has one entry point. Arguments may name checkout files (`@` + relative path) or programs
+/// next to `usv` (`%` + name).
+struct Delegated {
+    name: &'static str,
+    program: &'static str,
+    args: &'static [&'static str],
+    /// Added for `--quick`.
+    quick: &'static [&'static str],
+}
+
+const DELEGATED: &[Delegated] = &[
+    Delegated {
+        name: "mapper",
+        program: "mapper",
+        args: &["bench"],
+        quick: &["--quick"],
+    },
+    Delegated {
+        name: "tracker",
+        program: "tracker",
+        args: &["bench", "--config", "@launch/sets/tracker.toml"],
+        quick: &["--quick"],
+    },
+    Delegated {
+        name: "hazard",
+        program: "perception",
+        args: &["bench", "hazard"],
+        quick: &["--frames", "10"],
+    },
+    // Our BM and SGM beside OpenCV StereoBM and SGBM-3WAY, same inputs, same run (the script
+    // pip-installs opencv-python-headless when it is missing).
+    Delegated {
+        name: "stereo",
+        program: "python3",
+        args: &[
+            "@services/stereo/scripts/compare_opencv.py",
+            "--bin",
+            "%stereo",
+        ],
+        quick: &["--repeat", "2", "--rounds", "1"],
+    },
+];
+
+fn program_path(program: &str) -> anyhow::Result<std::path::PathBuf> {
+    crate::launchfile::resolve_program(program, std::path::Path::new("."))
+        .ok_or_else(|| anyhow::anyhow!("the `{program}` program was not found next to usv"))
+}
+
+/// Runs a delegated benchmark if `name` is one; its output goes straight to the terminal.
 pub fn run_service_bench(name: &str, quick: bool) -> anyhow::Result<bool> {
-    let Some((_, program, args)) = SERVICE_BENCHES.iter().find(|(n, _, _)| *n == name) else {
+    let Some(bench) = DELEGATED.iter().find(|b| b.name == name) else {
         return Ok(false);
     };
-    let exe = crate::launchfile::resolve_program(program, std::path::Path::new("."))
-        .ok_or_else(|| anyhow::anyhow!("the `{program}` program was not found next to usv"))?;
-    let mut cmd = std::process::Command::new(exe);
-    cmd.arg("bench");
-    for a in args.iter() {
-        match a.strip_prefix('@') {
-            Some(file) => cmd.arg(crate::session::checkout_file(file)?),
-            None => cmd.arg(a),
-        };
-    }
-    if quick {
-        cmd.arg("--quick");
+    let mut cmd = std::process::Command::new(program_path(bench.program)?);
+    let extra: &[&str] = if quick { bench.quick } else { &[] };
+    for a in bench.args.iter().chain(extra) {
+        if let Some(file) = a.strip_prefix('@') {
+            cmd.arg(crate::session::checkout_file(file)?);
+        } else if let Some(program) = a.strip_prefix('%') {
+            cmd.arg(program_path(program)?);
+        } else {
+            cmd.arg(a);
+        }
     }
     let status = cmd.status()?;
-    anyhow::ensure!(status.success(), "`{program} bench` failed: {status}");
+    anyhow::ensure!(
+        status.success(),
+        "`{}` bench failed: {status}",
+        bench.program
+    );
     Ok(true)
 }
 
@@ -95,8 +137,7 @@ fn recorder_live(seconds: f64) -> anyhow::Result<Vec<Figure>> {
     let (width, height) = (1280u32, 960u32);
     let dir = tempfile::tempdir()?;
     let file = dir.path().join("live.mcap");
-    let program = crate::launchfile::resolve_program("recorder", std::path::Path::new("."))
-        .ok_or_else(|| anyhow::anyhow!("the `recorder` program was not found next to usv"))?;
+    let program = program_path("recorder")?;
     let node = runtime::tool_node("usv-bench-rec")?;
     let mut frames = topics::STEREO_FRAME.publisher(&node)?;
     let recorder = std::process::Command::new(program)
