@@ -78,6 +78,11 @@ struct Metrics {
     bins: BTreeMap<usize, RangeBin>,
     /// f * B of the head, for the theoretical sigma.
     focal_baseline: f64,
+    /// Water-plane fit against the true water surface, per frame with a valid fit.
+    plane_tilt_deg: Vec<f64>,
+    plane_height_error_m: Vec<f64>,
+    /// Frames whose fit the stereo service marked invalid.
+    plane_invalid: u64,
 }
 
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
@@ -269,11 +274,22 @@ fn eval_scenario(
         "frames_compared": metrics.compared_frames,
         "wall_s": wall, "frames_per_s": metrics.disparities as f64 / wall,
         "services": service_figures, "stereo_range_error": range,
+        "water_plane": plane_report(&metrics),
         "behaviour": args.closed_loop.then(|| obs.report()),
         "chaos": chaos.map(|c| c.report()),
         "recording": recording,
         "overview": picture,
     }))
+}
+
+fn plane_report(m: &Metrics) -> serde_json::Value {
+    let abs = |v: &[f64]| v.iter().map(|x| x.abs()).collect::<Vec<_>>();
+    json!({"frames": m.plane_tilt_deg.len(), "invalid_frames": m.plane_invalid,
+           "tilt_error_deg": {"p50": percentile(&m.plane_tilt_deg, 0.5),
+                              "p90": percentile(&m.plane_tilt_deg, 0.9)},
+           "height_error_m": {"p50_abs": percentile(&abs(&m.plane_height_error_m), 0.5),
+                              "p90_abs": percentile(&abs(&m.plane_height_error_m), 0.9),
+                              "median": percentile(&m.plane_height_error_m, 0.5)}})
 }
 
 /// Reads the recording's statistics back and compares them with what the simulator says it
@@ -319,6 +335,7 @@ fn compare(m: &mut Metrics, h: &messages::DisparityHeader, estimate: &[f32], tru
     let (disparity, labels) = truth.split_at(estimate.len());
     m.focal_baseline = fb;
     m.compared_frames += 1;
+    compare_plane(m, h, disparity, labels);
     for ((&d_true, &label), &d_est) in disparity.iter().zip(labels).zip(estimate) {
         if !(d_true.is_finite() && d_true > 0.0 && is_solid(label)) {
             continue;
@@ -335,6 +352,32 @@ fn compare(m: &mut Metrics, h: &messages::DisparityHeader, estimate: &[f32], tru
         if d_est.is_finite() && d_est > 0.0 {
             entry.errors.push(fb / d_est as f64 - z_true);
         }
+    }
+}
+
+/// Scores the frame's water-plane fit against the true water surface: the true 3D points of water
+/// pixels within 40 m (every 4th row and column), where the fit's own inliers lie.
+fn compare_plane(
+    m: &mut Metrics,
+    h: &messages::DisparityHeader,
+    disparity: &[f32],
+    labels: &[f32],
+) {
+    if h.plane.valid != 1 {
+        m.plane_invalid += 1;
+        return;
+    }
+    let width = h.width as usize;
+    let points: Vec<[f64; 3]> = (0..h.height as usize)
+        .step_by(4)
+        .flat_map(|v| (0..width).step_by(4).map(move |u| (u, v)))
+        .filter(|&(u, v)| labels[v * width + u] as u8 == messages::truth_class::WATER)
+        .filter_map(|(u, v)| h.camera.point(u as f64, v as f64, disparity[v * width + u]))
+        .filter(|p| p[2] <= 40.0)
+        .collect();
+    if let Some(e) = stereo::eval::plane_error(h.plane.normal, h.plane.offset, &points) {
+        m.plane_tilt_deg.push(e.tilt_deg);
+        m.plane_height_error_m.push(e.height_error_m);
     }
 }
 
@@ -367,6 +410,17 @@ fn print_report(r: &serde_json::Value) {
             f(&b["theoretical_sigma_m"], 1.0)
         );
     }
+    let p = &r["water_plane"];
+    println!(
+        "water plane: {} frames scored, {} invalid; tilt error p50 {} / p90 {} deg; camera height error |p50| {} / |p90| {} m (median {} m)",
+        p["frames"],
+        p["invalid_frames"],
+        f(&p["tilt_error_deg"]["p50"], 1.0),
+        f(&p["tilt_error_deg"]["p90"], 1.0),
+        f(&p["height_error_m"]["p50_abs"], 1.0),
+        f(&p["height_error_m"]["p90_abs"], 1.0),
+        f(&p["height_error_m"]["median"], 1.0),
+    );
     let b = &r["behaviour"];
     if b.is_object() {
         println!(

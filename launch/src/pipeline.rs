@@ -97,30 +97,23 @@ fn sim_output(sim: &Path, args: &[&std::ffi::OsStr]) -> anyhow::Result<Vec<u8>> 
     Ok(out.stdout)
 }
 
-/// The scenario's heads, as `sim calib` sees them: mono heads first choice.
+/// The scenario's heads as the simulator builds them (its own or the built-in head set of its
+/// kind): the mono heads, or every head when it has none.
 pub fn default_heads(scenario: &Path) -> anyhow::Result<Vec<String>> {
-    let text = std::fs::read_to_string(scenario)?;
-    let value: toml::Value = toml::from_str(&text)?;
-    let kind = value
-        .get("kind")
-        .and_then(|k| k.as_str())
-        .unwrap_or("maritime");
-    if let Some(heads) = value.get("heads").and_then(|h| h.as_array()) {
-        let names = |mono: bool| -> Vec<String> {
-            heads
-                .iter()
-                .filter(|h| !mono || h.get("encoding").and_then(|e| e.as_str()) == Some("mono8"))
-                .filter_map(|h| h.get("name")?.as_str().map(str::to_string))
-                .collect()
-        };
-        let mono = names(true);
-        return Ok(if mono.is_empty() { names(false) } else { mono });
-    }
-    // The simulator's built-in head sets (sim::StereoHead::{maritime,ground}_defaults).
-    Ok(match kind {
-        "ground" => vec!["color".into()],
-        _ => vec!["hh_left".into(), "hh_right".into()],
-    })
+    let text = std::fs::read_to_string(scenario)
+        .map_err(|e| anyhow::anyhow!("scenario {}: {e}", scenario.display()))?;
+    let parsed = sim::Scenario::parse(&text, &scenario.display().to_string())?;
+    let world = parsed.build()?;
+    let names = |mono: bool| -> Vec<String> {
+        world
+            .heads
+            .iter()
+            .filter(|h| !mono || h.encoding == sim::Encoding::Mono8)
+            .map(|h| h.name.clone())
+            .collect()
+    };
+    let mono = names(true);
+    Ok(if mono.is_empty() { names(false) } else { mono })
 }
 
 fn toml_list(items: &[String]) -> String {
