@@ -181,7 +181,7 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
         // The stereo settings of the simulated sets (launch/src/pipeline.rs). 128 px of disparity
         // reach water about 4.5 m from a 640-wide head; fewer leave the lowest rows mismatched.
         let mut search = PlaneSearch {
-            lower_fraction: 0.35,
+            lower_fraction: 0.5,
             max_range_m: 25.0,
             ..Default::default()
         };
