@@ -113,8 +113,12 @@ pub const WORLD_MAP: Topic<[MapCell], WorldMapHeader> =
 pub const CONTACTS: Topic<ContactList> = Topic::new("usv/tracker/contacts", Qos::latest(1));
 pub const ACTUATOR_COMMAND: Topic<ActuatorCommand> =
     Topic::new("usv/control/actuator_command", Qos::lossless(1));
-pub const SEQUENCER_STATUS: Topic<SequencerStatus> =
-    Topic::new("usv/control/sequencer_status", Qos::latest(1));
+/// One status per sequencer cycle (up to the INS rate): a deep buffer, so the recorder keeps every
+/// one of them between its wake-ups while a slow reader still never blocks the sequencer.
+pub const SEQUENCER_STATUS: Topic<SequencerStatus> = Topic::new(
+    "usv/control/sequencer_status",
+    Qos::latest(1).with_buffer(64),
+);
 /// Every service publishes here; a full buffer must never block a service, so newest wins.
 pub const HEARTBEAT: Topic<Heartbeat> = Topic::new(
     "usv/health/heartbeat",
