@@ -2,8 +2,9 @@
 //! scenarios it was not trained on.
 //!
 //! Data: the simulator renders stereo pairs of the Hammerhead heads (at a reduced size to keep
-//! training to a few minutes), the stereo library matches them and fits the water plane exactly as
-//! the stereo service does, and the renderer's per-pixel truth labels every sampled pixel. A cell is
+//! training to a few minutes), the stereo library rectifies them with the heads' true calibration
+//! (toed cameras, oversized view), matches them and fits the water plane exactly as the stereo
+//! service does, and the renderer's per-pixel truth labels every sampled pixel. A cell is
 //! a hazard when more than half of its points come from buoy, marker, pylon, boat, terrain or
 //! vegetation pixels. Frames are taken in short sequences so the temporal memory is exercised as
 //! in the service. Everything is seeded by the scenarios: the same command writes the same model.
@@ -164,19 +165,10 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
         let h = &mut sim.world.heads[index];
         h.width = args.width;
         h.height = args.height;
-        // The classifier sees map cells, not pixels, so the heads are trained as ideal pairs looking
-        // the same way (the whole head yawed by the toe): labels then line up pixel for pixel with
-        // the disparity of an ideal calibration. The toed geometry is the stereo service's concern.
-        h.mount.rpy.z += h.toe;
-        h.toe = 0.0;
-        h.oversize = 1.0;
         let h = h.clone();
-        let calib = Calibration::ideal(
-            h.width as usize,
-            h.height as usize,
-            h.focal_px(),
-            h.baseline,
-        );
+        // The head's true calibration (toed cameras, oversized rectified view), as `sim calib`
+        // writes it for the stereo service; the truth is rendered in the same rectified view.
+        let calib = Calibration::from_toml(&h.calibration().to_toml())?;
         calib.validate()?;
         // The stereo settings of the simulated sets (launch/src/pipeline.rs). 128 px of disparity
         // reach water about 4.5 m from a 640-wide head; fewer leave the lowest rows mismatched.
@@ -191,17 +183,15 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
             ..Default::default()
         });
         let pipeline = FramePipeline::new(&calib, &matcher, search)?;
-        let rect = pipeline.camera();
-        if (rect.width, rect.height) != (h.width as usize, h.height as usize) {
-            bail!("rectified size differs from the raw size: labels would not line up");
-        }
-        let rot = h.mount.rotation();
-        let left = h.mount.position + rot * nalgebra::Vector3::new(0.0, h.baseline / 2.0, 0.0);
+        // The rectified left camera on the body, as the stereo service publishes it.
+        let view = h.rectified()?;
+        let (position, rotation) = h.rectified_mount(&view);
+        let (roll, pitch, yaw) = rotation.euler_angles();
         let mount = Pose {
-            position: left.into(),
-            roll: h.mount.rpy[0],
-            pitch: h.mount.rpy[1],
-            yaw: h.mount.rpy[2],
+            position: position.into(),
+            roll,
+            pitch,
+            yaw,
         };
         heads.push((index, h, pipeline, mount));
     }
@@ -233,8 +223,10 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
                 left.resize(h.image_len(), 0);
                 right.resize(h.image_len(), 0);
                 sim.render_head(*index, &mut left, &mut right)?;
-                let (w, ht) = (h.width as usize, h.height as usize);
-                let result = pipeline.process(w, ht, &left, &right)?;
+                let result =
+                    pipeline.process(h.width as usize, h.height as usize, &left, &right)?;
+                // Disparity, truth and labels live in the rectified view.
+                let (w, ht) = (result.disparity.width, result.disparity.height);
                 let disparity: Vec<f32> = result
                     .disparity
                     .data

@@ -47,6 +47,11 @@ pub struct ArcConfig {
     pub unknown_is_blocked: bool,
     /// The previous arc is kept while its goal error is within this much (rad) of the best arc's.
     pub hysteresis_rad: f64,
+    /// Contacts faster than this (m/s) are predicted along their velocity while the boat runs each
+    /// arc ([`ArcSet::blocked_by_moving`]); slower ones are left to the map.
+    pub moving_min_speed_mps: f64,
+    /// Extra clearance kept from a moving contact's predicted hull (m), on top of the corridor.
+    pub moving_margin_m: f64,
 }
 
 impl Default for ArcConfig {
@@ -63,6 +68,8 @@ impl Default for ArcConfig {
             hazard_threshold: 0.5,
             unknown_is_blocked: false,
             hysteresis_rad: 0.08,
+            moving_min_speed_mps: 1.0,
+            moving_margin_m: 2.0,
         }
     }
 }
@@ -99,6 +106,8 @@ impl ArcConfig {
             ("current_bound_mps", self.current_bound_mps),
             ("hazard_threshold", self.hazard_threshold),
             ("hysteresis_rad", self.hysteresis_rad),
+            ("moving_min_speed_mps", self.moving_min_speed_mps),
+            ("moving_margin_m", self.moving_margin_m),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));
@@ -157,6 +166,17 @@ pub struct Blocked {
     pub starboard: u32,
 }
 
+/// A contact that moves: it is predicted at constant velocity while the boat runs each arc.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MovingObstacle {
+    /// ENU position now (m).
+    pub position: [f64; 2],
+    /// ENU velocity (m/s).
+    pub velocity: [f64; 2],
+    /// Half the hull's size plus the position uncertainty (m).
+    pub radius_m: f64,
+}
+
 /// The arcs and their lookup table.
 pub struct ArcSet {
     cfg: ArcConfig,
@@ -191,15 +211,7 @@ impl ArcSet {
                 Arc::new(t * cfg.max_curvature, cfg.length_m)
             })
             .collect();
-        // Obstacle anywhere in its map cell + lookup rounding: one cell diagonal in all.
-        let inflation = resolution * std::f64::consts::SQRT_2;
-        let half_width = |s: f64| {
-            cfg.vessel_width_m / 2.0
-                + cfg.safety_margin_m
-                + cfg.current_bound_mps * s / cfg.reference_speed_mps
-                + inflation
-        };
-        let reach = cfg.length_m + half_width(cfg.length_m);
+        let reach = cfg.length_m + corridor_half_width(cfg, resolution, cfg.length_m);
         let half = (reach / resolution).ceil() as i32 + 1;
         let side = 2 * half as usize;
         let mut set = Self {
@@ -219,7 +231,8 @@ impl ArcSet {
             let steps = (arc.extent_m / (0.5 * resolution)).ceil().max(1.0) as usize;
             for n in 0..=steps {
                 let s = arc.extent_m * n as f64 / steps as f64;
-                set.stamp_disc(Arc::point(arc.curvature, s), half_width(s), 1u128 << a);
+                let radius = corridor_half_width(cfg, resolution, s);
+                set.stamp_disc(Arc::point(arc.curvature, s), radius, 1u128 << a);
             }
         }
         Ok(set)
@@ -361,6 +374,71 @@ impl ArcSet {
         }
         out
     }
+}
+
+impl ArcSet {
+    /// Arcs a moving contact blocks: running along the arc at `speed_mps` from `vessel` (heading
+    /// `yaw`), the boat would come within half its width plus the safety margin, the contact's
+    /// radius and [`ArcConfig::moving_margin_m`] of where the contact will be at that same moment. The map only
+    /// knows where a boat is now; this is where it will be when the boat gets there.
+    pub fn blocked_by_moving(
+        &self,
+        obstacles: &[MovingObstacle],
+        vessel: [f64; 2],
+        yaw: f64,
+        speed_mps: f64,
+    ) -> Blocked {
+        // A boat gathering way still covers the arc soon; below 1 m/s the arc would take forever.
+        let speed = speed_mps.max(1.0);
+        let (sin, cos) = yaw.sin_cos();
+        let to_body = |v: [f64; 2]| [cos * v[0] + sin * v[1], -sin * v[0] + cos * v[1]];
+        let mut out = Blocked::default();
+        for o in obstacles {
+            let p0 = to_body([o.position[0] - vessel[0], o.position[1] - vessel[1]]);
+            let v = to_body(o.velocity);
+            let mut hit = false;
+            for (a, arc) in self.arcs.iter().enumerate() {
+                // One sample per metre of arc: a contact moves < 1 m per sample at the speeds the
+                // boat meets, and the corridor is several metres wide.
+                let steps = arc.extent_m.ceil().max(1.0) as usize;
+                let conflict = (0..=steps).any(|n| {
+                    let s = arc.extent_m * n as f64 / steps as f64;
+                    let t = s / speed;
+                    let own = Arc::point(arc.curvature, s);
+                    let (dx, dy) = (p0[0] + v[0] * t - own[0], p0[1] + v[1] * t - own[1]);
+                    // The hull and its margin; the current's drift and the map-cell rounding of
+                    // the static corridor do not apply to a contact tracked in metres.
+                    let clear = self.cfg.vessel_width_m / 2.0
+                        + self.cfg.safety_margin_m
+                        + o.radius_m
+                        + self.cfg.moving_margin_m;
+                    dx * dx + dy * dy < clear * clear
+                });
+                if conflict {
+                    out.mask |= 1u128 << a;
+                    hit = true;
+                }
+            }
+            if hit {
+                if p0[1] > 0.0 {
+                    out.port += 1;
+                } else {
+                    out.starboard += 1;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Half width of an arc's corridor `s` metres along it: the hull, the safety margin, the drift the
+/// current can cause by then, and one map-cell diagonal (an obstacle anywhere in its cell plus the
+/// lookup's rounding).
+fn corridor_half_width(cfg: &ArcConfig, resolution: f64, s: f64) -> f64 {
+    cfg.vessel_width_m / 2.0
+        + cfg.safety_margin_m
+        + cfg.current_bound_mps * s / cfg.reference_speed_mps
+        + resolution * std::f64::consts::SQRT_2
 }
 
 /// Picks the traversable arc closest to the goal direction, with hysteresis.
@@ -586,6 +664,70 @@ mod tests {
         .unwrap();
         strict.collect_hazards(&g, &map, &mut out);
         assert_eq!(out, vec![[10.25, 0.25]]);
+    }
+
+    #[test]
+    fn a_boat_crossing_from_starboard_blocks_the_arcs_it_will_cut_but_not_one_moving_away() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let straight = set.nearest(0.0);
+        // Own boat at the origin heading north (yaw 90 deg) at 5 m/s. The other boat is 30 m ahead
+        // and 25 m to starboard, heading west at 5 m/s: it crosses our bow in ~5 s, when we are
+        // 25 m up the straight arc. Nothing is in its way now, so the map says nothing.
+        let yaw = std::f64::consts::FRAC_PI_2;
+        let crossing = MovingObstacle {
+            position: [25.0, 25.0],
+            velocity: [-5.0, 0.0],
+            radius_m: 2.0,
+        };
+        let b = set.blocked_by_moving(&[crossing], [0.0, 0.0], yaw, 5.0);
+        assert!(
+            b.mask & (1 << straight) != 0,
+            "the straight arc must be blocked"
+        );
+        assert_eq!((b.port, b.starboard), (0, 1));
+        // Turning hard to starboard passes astern of it; the gentle turns meet it.
+        assert!(b.mask & 1 == 0, "hardest starboard arc stays free");
+        assert!(
+            b.mask & (1 << (straight - 8)) != 0,
+            "a gentle starboard turn is blocked"
+        );
+        // The same boat moving away east never meets us.
+        let leaving = MovingObstacle {
+            velocity: [5.0, 0.0],
+            ..crossing
+        };
+        assert_eq!(
+            set.blocked_by_moving(&[leaving], [0.0, 0.0], yaw, 5.0).mask,
+            0
+        );
+        // A boat stopped at that spot is off every arc's corridor: a static map obstacle would
+        // block only what passes through it, and so does a contact that does not move.
+        let stopped = MovingObstacle {
+            velocity: [0.0, 0.0],
+            ..crossing
+        };
+        let b = set.blocked_by_moving(&[stopped], [0.0, 0.0], yaw, 5.0);
+        assert!(b.mask & (1 << straight) == 0);
+    }
+
+    #[test]
+    fn a_head_on_boat_blocks_the_straight_arcs_even_beyond_the_arc_length_today() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let straight = set.nearest(0.0);
+        // 70 m ahead closing at 10 m/s: we meet after ~35 m, inside the 40 m arcs.
+        let head_on = MovingObstacle {
+            position: [70.0, 0.0],
+            velocity: [-10.0, 0.0],
+            radius_m: 2.0,
+        };
+        let b = set.blocked_by_moving(&[head_on], [0.0, 0.0], 0.0, 5.0);
+        assert!(b.mask & (1 << straight) != 0);
+        // The same boat 300 m away is beyond the arcs' time: nothing blocked.
+        let far = MovingObstacle {
+            position: [300.0, 0.0],
+            ..head_on
+        };
+        assert_eq!(set.blocked_by_moving(&[far], [0.0, 0.0], 0.0, 5.0).mask, 0);
     }
 
     #[test]

@@ -2,13 +2,13 @@
 //! of them into one actuator command and one status. No clock and no I/O: "now" is the newest input
 //! stamp, so the same inputs always give the same outputs.
 
-use crate::arcs::{angle_diff, ArcChooser, ArcConfig, ArcError, ArcSet};
+use crate::arcs::{angle_diff, ArcChooser, ArcConfig, ArcError, ArcSet, Blocked, MovingObstacle};
 use crate::control::{self, ControlConfig, Controller, Guidance, OwnState};
 use crate::mission::{Directive, Mission, MissionError, Runner, World};
 use crate::watchdog::{self, Watchdog, WatchdogConfig};
 use messages::{
-    command_mode, mission_action, ActuatorCommand, ContactList, FixedStr, Header, InsState,
-    MapCell, MissionReply, SequencerStatus, WorldMapHeader,
+    command_mode, contact_class, mission_action, ActuatorCommand, ContactList, FixedStr, Header,
+    InsState, MapCell, MissionReply, SequencerStatus, WorldMapHeader,
 };
 use serde::Deserialize;
 
@@ -94,6 +94,8 @@ pub struct Sequencer {
     map_origin: [f64; 2],
     ins: Option<InsState>,
     contacts: Box<ContactList>,
+    /// Moving contacts of this cycle, predicted to now (kept to reuse the allocation).
+    moving: Vec<MovingObstacle>,
     watchdog: Watchdog,
     runner: Runner,
     controller: Controller,
@@ -113,6 +115,7 @@ impl Sequencer {
             map_origin: [0.0; 2],
             ins: None,
             contacts: Box::default(),
+            moving: Vec::new(),
             watchdog: Watchdog::new(&cfg.watchdog),
             runner: Runner::new(cfg.control.max_speed_mps),
             controller: Controller::default(),
@@ -276,9 +279,20 @@ impl Sequencer {
                     contacts_stamp_ns: self.contacts.hdr.stamp_ns,
                 };
                 let directive = self.runner.update(now, &world);
-                let blocked =
+                let mut blocked =
                     self.arcs
                         .blocked(&self.hazards, self.map_origin, own.position, own.yaw);
+                let moving = blocked_by_moving_contacts(
+                    &self.arcs,
+                    &self.contacts,
+                    self.runner.followed_contact(),
+                    &mut self.moving,
+                    &own,
+                    now,
+                );
+                blocked.mask |= moving.mask;
+                blocked.port += moving.port;
+                blocked.starboard += moving.starboard;
                 status.blocked_arcs = [blocked.mask as u64, (blocked.mask >> 64) as u64];
                 let guidance = match directive {
                     Directive::Idle | Directive::Hold => None,
@@ -338,7 +352,7 @@ impl Sequencer {
         &mut self,
         own: &OwnState,
         g: Guidance,
-        blocked: crate::arcs::Blocked,
+        blocked: Blocked,
         now: u64,
         dt: f64,
         status: &mut SequencerStatus,
@@ -388,4 +402,46 @@ impl Sequencer {
             }
         }
     }
+}
+
+/// Arcs that would meet a moving contact where it will be (the map holds where it is now).
+/// Confirmed tracks only, not false alarms, not the contact being followed.
+fn blocked_by_moving_contacts(
+    arcs: &ArcSet,
+    contacts: &ContactList,
+    followed: Option<u32>,
+    moving: &mut Vec<MovingObstacle>,
+    own: &OwnState,
+    now: u64,
+) -> Blocked {
+    let cfg = arcs.config();
+    let age = now.saturating_sub(contacts.hdr.stamp_ns) as f64 * 1e-9;
+    moving.clear();
+    moving.extend(
+        contacts
+            .as_slice()
+            .iter()
+            .filter(|c| {
+                c.confirmed == 1
+                    && c.class != contact_class::FALSE_ALARM
+                    && Some(c.id) != followed
+                    && c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
+            })
+            .map(|c| {
+                // Two sigma of position, capped: a loose new track must not block everything.
+                let sigma = (c.covariance[0].max(c.covariance[5]) as f64)
+                    .max(0.0)
+                    .sqrt();
+                MovingObstacle {
+                    position: [
+                        c.position[0] + c.velocity[0] * age,
+                        c.position[1] + c.velocity[1] * age,
+                    ],
+                    velocity: c.velocity,
+                    radius_m: 0.5 * (c.extent[0] as f64).hypot(c.extent[1] as f64)
+                        + (2.0 * sigma).min(5.0),
+                }
+            }),
+    );
+    arcs.blocked_by_moving(moving, own.position, own.yaw, own.speed_mps)
 }

@@ -487,6 +487,13 @@ impl Runner {
             .is_some_and(|s| matches!(s.kind, StepKind::Follow { .. }))
     }
 
+    /// The contact the current step follows: the goal, not an obstacle to keep clear of.
+    pub fn followed_contact(&self) -> Option<u32> {
+        self.needs_contacts()
+            .then(|| self.lock.map(|l| l.id))
+            .flatten()
+    }
+
     fn current(&self) -> Option<&Step> {
         self.step_index()
             .and_then(|i| self.mission.as_ref().and_then(|m| m.steps.get(i)))

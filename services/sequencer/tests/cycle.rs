@@ -1,6 +1,9 @@
 //! Whole cycles of the sequencer library: inputs in, command and status out.
 
-use messages::{command_mode, GridGeometry, Header, InsState, MapCell, Pose, WorldMapHeader};
+use messages::{
+    command_mode, contact_class, Contact, ContactList, GridGeometry, Header, InsState, MapCell,
+    Pose, WorldMapHeader,
+};
 use sequencer::{watchdog, Config, Sequencer};
 
 const MS: u64 = 1_000_000;
@@ -219,4 +222,56 @@ fn nan_ins_is_refused_and_an_invalid_mission_leaves_the_running_one() {
         seq.request(messages::mission_action::RESUME, b"").accepted,
         0
     );
+}
+
+/// A confirmed boat contact at `position` (ENU) moving at `velocity`.
+fn boat_contacts(stamp_ns: u64, position: [f64; 2], velocity: [f64; 2]) -> ContactList {
+    let mut list = ContactList {
+        hdr: Header::new(0, stamp_ns, "test"),
+        count: 1,
+        ..Default::default()
+    };
+    list.contacts[0] = Contact {
+        id: 7,
+        class: contact_class::BOAT,
+        confirmed: 1,
+        position,
+        velocity,
+        extent: [6.0, 2.5, 1.5],
+        ..Default::default()
+    };
+    list
+}
+
+#[test]
+fn a_boat_about_to_cross_ahead_blocks_the_course_the_empty_map_leaves_open() {
+    // Heading east at 5 m/s; a boat 25 m ahead and 25 m to starboard heads north at 5 m/s: it
+    // reaches our track when we do. The map is empty (it only knows where the boat is now).
+    let crossing = boat_contacts(100 * MS, [25.0, -25.0], [0.0, 5.0]);
+    let mut seq = started(EAST);
+    feed(&mut seq, 100 * MS, &[]);
+    seq.on_contacts(&crossing);
+    let (cmd, status) = seq.cycle("test");
+    let straight = seq.arcs().nearest(0.0);
+    assert!(status.arc_blocked(straight), "straight arc {straight} free");
+    assert!(status.chosen_arc >= 0, "some arc stays free");
+    assert_ne!(status.chosen_arc as usize, straight);
+    assert!(!status.arc_blocked(status.chosen_arc as usize));
+    assert_eq!(cmd.mode, command_mode::NAVIGATING);
+
+    // The same boat heading away south is no threat: straight on.
+    let mut seq = started(EAST);
+    feed(&mut seq, 100 * MS, &[]);
+    seq.on_contacts(&boat_contacts(100 * MS, [25.0, -25.0], [0.0, -5.0]));
+    let (_, status) = seq.cycle("test");
+    assert_eq!(status.blocked_arcs, [0, 0]);
+    assert_eq!(status.chosen_arc as usize, straight);
+
+    // A tentative track does not steer the boat yet.
+    let mut tentative = crossing;
+    tentative.contacts[0].confirmed = 0;
+    let mut seq = started(EAST);
+    feed(&mut seq, 100 * MS, &[]);
+    seq.on_contacts(&tentative);
+    assert_eq!(seq.cycle("test").1.blocked_arcs, [0, 0]);
 }
