@@ -436,6 +436,20 @@ fn print_report(r: &serde_json::Value) {
             f(&b["camera_to_command_ms"]["p99"], 1.0),
             b["confirmed_contacts"].as_array().map_or(0, |c| c.len()),
         );
+        let t = &b["tracking"];
+        println!(
+            "tracking: boats within 100 m detected {} of {} frames, markers/buoys within 60 m {} of {}, confirmed tracks {} ({} false, {}/min), moving-boat speed error p50 {} %, heading error p50 {} deg, along/cross 3-sigma ratio {}",
+            t["boats_within_100m"]["detected"],
+            t["boats_within_100m"]["frames"],
+            t["markers_within_60m"]["detected"],
+            t["markers_within_60m"]["frames"],
+            t["confirmed_tracks"],
+            t["false_tracks"],
+            f(&t["false_tracks_per_min"], 1.0),
+            f(&t["moving_speed_error_pct"]["p50"], 1.0),
+            f(&t["moving_heading_error_deg"]["p50"], 1.0),
+            f(&t["along_cross_3sigma_ratio"], 1.0),
+        );
         println!(
             "overview picture: {}",
             r["overview"].as_str().unwrap_or("-")

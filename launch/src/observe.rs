@@ -126,6 +126,8 @@ pub struct Observation {
     pub truth_objects: BTreeMap<u32, (u8, [f64; 2], f32)>,
     pub goal: MissionGoal,
     last_own: Option<Pose>,
+    /// Contacts against truth (detection by class and range, false tracks, speed error).
+    pub tracking: crate::eval_tracking::TrackingScore,
 }
 
 impl Observation {
@@ -165,6 +167,7 @@ impl Observation {
         let (x, y) = (own.position[0], own.position[1]);
         self.track.push((t, x, y, own.yaw));
         self.last_own = Some(own);
+        self.tracking.on_truth(truth);
         for o in truth.objects() {
             if o.class == truth_class::VEGETATION {
                 continue;
@@ -361,6 +364,7 @@ impl Observation {
             "safe_stop_commands": self.safe_stop_commands,
             "blocked_commands": self.blocked_commands,
             "mission_step": self.last_status.map(|s| s.step_name.as_str().to_string()),
+            "tracking": self.tracking.report(self.scenario_time_s() / 60.0),
         })
     }
 }
@@ -449,6 +453,7 @@ impl Observer {
         }
         while let Some(sample) = self.contacts.receive()? {
             o.on_contacts(sample.payload().as_slice());
+            o.tracking.on_contacts(sample.payload());
         }
         while let Some(sample) = self.commands.receive()? {
             o.on_command(sample.payload());

@@ -1,0 +1,243 @@
+//! Contact tracking scored against the simulator's truth over a closed-loop run: detection
+//! probability by class and range (in metres and in boat lengths, Hammerhead's figure 11), false
+//! tracks per minute, a moving boat's speed and heading error, and the along- versus cross-track
+//! 3-sigma ratio. Matching and the per-instant metrics are the tracker's own (`tracker::eval`).
+
+use messages::{truth_class, ContactList, GroundTruth};
+use serde_json::json;
+use std::collections::{BTreeMap, BTreeSet};
+use tracker::eval::{score, AlongCross};
+
+/// A track within this distance of a true object is that object's track (m).
+const GATE_M: f64 = 10.0;
+/// Upper edges of the range bins (m).
+const RANGE_BINS_M: [f64; 5] = [25.0, 50.0, 100.0, 200.0, 400.0];
+/// Upper edges of the range bins in lengths of the object.
+const LENGTH_BINS: [f64; 4] = [5.0, 10.0, 20.0, 40.0];
+/// Truth lists kept to meet their contact list (the observer may read a newer truth first).
+const TRUTHS_KEPT: usize = 8;
+/// Classes scored: what the tracker is meant to report.
+const SCORED: [u8; 4] = [
+    truth_class::BOAT,
+    truth_class::BUOY,
+    truth_class::MARKER,
+    truth_class::PYLON,
+];
+
+#[derive(Default, Clone, Copy)]
+struct Counts {
+    frames: u64,
+    detected: u64,
+}
+
+impl Counts {
+    fn add(&mut self, detected: bool) {
+        self.frames += 1;
+        self.detected += u64::from(detected);
+    }
+
+    fn json(&self) -> serde_json::Value {
+        json!({"frames": self.frames, "detected": self.detected,
+               "probability": (self.frames > 0).then(|| self.detected as f64 / self.frames as f64)})
+    }
+}
+
+#[derive(Default)]
+pub struct TrackingScore {
+    truths: BTreeMap<u64, Box<GroundTruth>>,
+    scored_lists: u64,
+    /// (class, bin) -> counts, by metres and by object lengths.
+    by_range: BTreeMap<(u8, usize), Counts>,
+    by_lengths: BTreeMap<(u8, usize), Counts>,
+    /// Boats within 100 m and markers or buoys within 60 m: the targets.
+    boats_100m: Counts,
+    markers_60m: Counts,
+    confirmed_ids: BTreeSet<u32>,
+    matched_ids: BTreeSet<u32>,
+    speed_errors_pct: Vec<f64>,
+    heading_errors_deg: Vec<f64>,
+    along_cross: AlongCross,
+}
+
+impl TrackingScore {
+    pub fn on_truth(&mut self, truth: &GroundTruth) {
+        self.truths.insert(truth.hdr.stamp_ns, Box::new(*truth));
+        while self.truths.len() > TRUTHS_KEPT {
+            self.truths.pop_first();
+        }
+    }
+
+    /// Scores a contact list against the truth of the same frame (skipped when it is not at hand).
+    pub fn on_contacts(&mut self, list: &ContactList) {
+        let Some(truth) = self.truths.get(&list.hdr.stamp_ns) else {
+            return;
+        };
+        self.scored_lists += 1;
+        let own = truth.own.pose;
+        let s = score(list, truth, &own, GATE_M);
+        for (o, os) in truth.objects().iter().zip(&s.objects) {
+            if !SCORED.contains(&o.class) {
+                continue;
+            }
+            let range =
+                (o.pose.position[0] - own.position[0]).hypot(o.pose.position[1] - own.position[1]);
+            let detected = os.track_id.is_some();
+            if let Some(bin) = RANGE_BINS_M.iter().position(|&edge| range < edge) {
+                self.by_range
+                    .entry((o.class, bin))
+                    .or_default()
+                    .add(detected);
+            }
+            if let Some(bin) = LENGTH_BINS.iter().position(|&e| os.range_lengths < e) {
+                self.by_lengths
+                    .entry((o.class, bin))
+                    .or_default()
+                    .add(detected);
+            }
+            match o.class {
+                truth_class::BOAT if range < 100.0 => self.boats_100m.add(detected),
+                truth_class::BUOY | truth_class::MARKER if range < 60.0 => {
+                    self.markers_60m.add(detected)
+                }
+                _ => {}
+            }
+            if let Some(id) = os.track_id {
+                self.matched_ids.insert(id);
+                self.along_cross.add(os);
+            }
+            if let (Some(speed), Some(heading)) = (os.speed_error_pct, os.heading_error) {
+                self.speed_errors_pct.push(speed);
+                self.heading_errors_deg.push(heading.to_degrees().abs());
+            }
+        }
+        self.confirmed_ids.extend(
+            list.as_slice()
+                .iter()
+                .filter(|c| c.confirmed == 1)
+                .map(|c| c.id),
+        );
+    }
+
+    /// Confirmed tracks that never came within the gate of a scored true object.
+    pub fn false_tracks(&self) -> usize {
+        self.confirmed_ids.difference(&self.matched_ids).count()
+    }
+
+    pub fn report(&self, scenario_minutes: f64) -> serde_json::Value {
+        let bins = |map: &BTreeMap<(u8, usize), Counts>, edges: &[f64], unit: &str| {
+            map.iter()
+                .map(|(&(class, bin), c)| {
+                    json!({"class": truth_class::name(class),
+                           "below": edges[bin], "unit": unit, "counts": c.json()})
+                })
+                .collect::<Vec<_>>()
+        };
+        let median = |v: &[f64]| crate::session::percentile(v, 0.5);
+        json!({
+            "contact_lists_scored": self.scored_lists,
+            "gate_m": GATE_M,
+            "boats_within_100m": self.boats_100m.json(),
+            "markers_within_60m": self.markers_60m.json(),
+            "by_range_m": bins(&self.by_range, &RANGE_BINS_M, "m"),
+            "by_range_lengths": bins(&self.by_lengths, &LENGTH_BINS, "object lengths"),
+            "confirmed_tracks": self.confirmed_ids.len(),
+            "false_tracks": self.false_tracks(),
+            "false_tracks_per_min": (scenario_minutes > 0.0)
+                .then(|| self.false_tracks() as f64 / scenario_minutes),
+            "moving_speed_error_pct": {"p50": median(&self.speed_errors_pct),
+                                       "samples": self.speed_errors_pct.len()},
+            "moving_heading_error_deg": {"p50": median(&self.heading_errors_deg)},
+            "along_cross_3sigma_ratio": self.along_cross.sigma_ratio(),
+            "along_cross_rms_error_m": self.along_cross.rms_errors(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use messages::{Contact, Header, TruthObject};
+
+    fn truth(stamp: u64) -> GroundTruth {
+        let mut t = GroundTruth {
+            hdr: Header::new(0, stamp, "sim"),
+            object_count: 2,
+            ..Default::default()
+        };
+        // A boat 40 m north doing 5 m/s east, and a buoy 30 m east.
+        t.objects[0] = TruthObject {
+            id: 1,
+            class: truth_class::BOAT,
+            extent: [8.0, 3.0, 2.0],
+            velocity: [5.0, 0.0, 0.0],
+            ..Default::default()
+        };
+        t.objects[0].pose.position = [0.0, 40.0, 0.0];
+        t.objects[1] = TruthObject {
+            id: 2,
+            class: truth_class::BUOY,
+            extent: [1.0, 1.0, 1.5],
+            ..Default::default()
+        };
+        t.objects[1].pose.position = [30.0, 0.0, 0.0];
+        t
+    }
+
+    fn contact(id: u32, position: [f64; 2], velocity: [f64; 2]) -> Contact {
+        Contact {
+            id,
+            confirmed: 1,
+            position,
+            velocity,
+            covariance: {
+                let mut c = [0.0; 16];
+                (c[0], c[5], c[10], c[15]) = (1.0, 1.0, 0.1, 0.1);
+                c
+            },
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn detections_false_tracks_and_speed_error_are_scored_by_class_and_range() {
+        let mut s = TrackingScore::default();
+        s.on_truth(&truth(7));
+        let mut list = ContactList {
+            hdr: Header::new(0, 7, "tracker"),
+            count: 2,
+            ..Default::default()
+        };
+        // The boat tracked 1 m off at 4.8 m/s; a false track far from everything; no buoy track.
+        list.contacts[0] = contact(10, [1.0, 40.0], [4.8, 0.0]);
+        list.contacts[1] = contact(11, [-60.0, -60.0], [0.0, 0.0]);
+        s.on_contacts(&list);
+        // A list without the truth of its frame is not scored.
+        list.hdr.stamp_ns = 8;
+        s.on_contacts(&list);
+
+        let r = s.report(0.5);
+        assert_eq!(r["contact_lists_scored"], 1);
+        assert_eq!(r["boats_within_100m"]["detected"], 1);
+        assert_eq!(r["markers_within_60m"]["frames"], 1);
+        assert_eq!(r["markers_within_60m"]["detected"], 0);
+        assert_eq!(r["false_tracks"], 1);
+        assert_eq!(r["false_tracks_per_min"], 2.0);
+        let speed = r["moving_speed_error_pct"]["p50"].as_f64().unwrap();
+        assert!((speed - 4.0).abs() < 1e-9, "{speed}");
+        // The boat is 40 m out: the 25-50 m bin, and 5 lengths -> the 5-10 lengths bin.
+        let boat_bin = r["by_range_m"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|b| b["class"] == "boat")
+            .unwrap();
+        assert_eq!(boat_bin["below"], 50.0);
+        let boat_lengths = r["by_range_lengths"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|b| b["class"] == "boat")
+            .unwrap();
+        assert_eq!(boat_lengths["below"], 10.0);
+    }
+}
