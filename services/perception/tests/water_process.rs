@@ -1,0 +1,333 @@
+//! The real `perception` process with water detection on: a simulator colour frame of a trail with a
+//! puddle ahead (rendered, matched by the stereo library as the stereo service does) goes in with its
+//! INS sample; a `WaterMask` with water pixels on the puddle and a local map with water cells at the
+//! puddle, at its elevation, come out. A disparity of another frame or another size is not fused and
+//! is reported in the heartbeat, while the maps go on.
+
+use messages::{
+    topics, truth_class, water_cue, CameraModel, DisparityHeader, Header, Heartbeat, InsState,
+    Name, PixelEncoding, Pose, StereoFrameHeader,
+};
+use nalgebra::Vector3;
+use runtime::Ports;
+use sim::{Simulator, WaterRegion};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use stereo::bm::BmParams;
+use stereo::calib::Calibration;
+use stereo::pipeline::{FramePipeline, PlaneSearch};
+use stereo::MatcherConfig;
+
+struct SimFrame {
+    width: u32,
+    height: u32,
+    /// Left then right plane, Rgb8.
+    pair: Vec<u8>,
+    disparity: Vec<f32>,
+    labels: Vec<u8>,
+    camera: CameraModel,
+    vehicle: Pose,
+    /// Puddles: centre, radius, elevation.
+    puddles: Vec<([f64; 2], f64, f64)>,
+}
+
+/// The colour head of the head-on trail scenario at 512x384 (the paper's size), `t` s in.
+fn render(t: f64) -> SimFrame {
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../sim/scenarios/trail_puddles_headon.toml");
+    let mut world = sim::scenario::load_world(&scenario).unwrap();
+    world.scale_heads(0.5).unwrap();
+    let mut sim = Simulator::new(world);
+    let throttle = sim.state().throttle;
+    while sim.time() + 1e-9 < t {
+        sim.step(
+            sim::Command {
+                rudder: 0.0,
+                throttle,
+            },
+            0.05,
+        );
+    }
+    let index = sim.world.head_index("color").unwrap();
+    let head = sim.world.heads[index].clone();
+    let (w, h) = (head.width as usize, head.height as usize);
+    let mut pair = vec![0u8; 2 * head.image_len()];
+    let (left, right) = pair.split_at_mut(head.image_len());
+    sim.render_head(index, left, right).unwrap();
+    let mut truth_disparity = vec![0f32; w * h];
+    let mut labels = vec![0u8; w * h];
+    sim.render_truth(index, &mut truth_disparity, &mut labels)
+        .unwrap();
+    // Renderer labels start at sky = 0, the contract's classes at sky = 1.
+    labels.iter_mut().for_each(|l| *l += 1);
+    let luma = |p: &[u8]| -> Vec<u8> {
+        p.chunks_exact(3)
+            .map(|c| water::cues::luma(c[0], c[1], c[2]))
+            .collect()
+    };
+    let calib = Calibration::ideal(w, h, head.focal_px(), head.baseline);
+    let matcher = MatcherConfig::Bm(BmParams {
+        num_disparities: 96,
+        ..BmParams::default()
+    });
+    let mut pipeline = FramePipeline::new(&calib, &matcher, PlaneSearch::default()).unwrap();
+    let out = pipeline.process(w, h, &luma(left), &luma(right)).unwrap();
+    let mut disparity = vec![f32::NAN; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            disparity[y * w + x] = out.disparity.get(x, y).unwrap_or(f32::NAN);
+        }
+    }
+    let rot = head.mount.rotation();
+    let lens = head.mount.position + rot * Vector3::new(0.0, head.baseline / 2.0, 0.0);
+    let camera = CameraModel {
+        fx: calib.left.fx,
+        fy: calib.left.fy,
+        cx: calib.left.cx,
+        cy: calib.left.cy,
+        baseline_m: head.baseline,
+        mount: Pose {
+            position: lens.into(),
+            roll: head.mount.rpy[0],
+            pitch: head.mount.rpy[1],
+            yaw: head.mount.rpy[2],
+        },
+    };
+    let p = &sim.state().pose;
+    let vehicle = Pose {
+        position: p.position.into(),
+        roll: p.rpy[0],
+        pitch: p.rpy[1],
+        yaw: p.rpy[2],
+    };
+    let puddles = sim
+        .truth()
+        .water
+        .iter()
+        .filter_map(|r| match r {
+            WaterRegion::Disc {
+                center,
+                radius,
+                elevation,
+            } => Some((*center, *radius, *elevation)),
+            WaterRegion::Plane { .. } => None,
+        })
+        .collect();
+    SimFrame {
+        width: w as u32,
+        height: h as u32,
+        pair,
+        disparity,
+        labels,
+        camera,
+        vehicle,
+        puddles,
+    }
+}
+
+fn write_config(dir: &Path) -> PathBuf {
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/hazard.json");
+    let config = dir.join("perception.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "model = {:?}\nheads = [\"color\"]\nframe_deadline_ms = 5000\n[grid]\nwidth = 200\nheight = 200\nresolution_m = 0.5\n[water]\nheads = [\"color\"]\n",
+            model.display().to_string()
+        ),
+    )
+    .unwrap();
+    config
+}
+
+#[test]
+fn water_mask_and_water_cells_from_a_puddle_ahead() {
+    // 3 s in: the first puddle (18 m east, radius 1.8 m) is 8-9 m ahead.
+    let f = render(3.0);
+    let n = (f.width * f.height) as usize;
+    let domain = format!("percwater{}", std::process::id());
+    let dir = tempfile::tempdir().unwrap();
+    let config = write_config(dir.path());
+    let _process = runtime::testing::ServiceProcess::run(
+        env!("CARGO_BIN_EXE_perception"),
+        config.as_os_str(),
+        &domain,
+    );
+    let node = runtime::tool_node("perception_water_test").unwrap();
+    let mut frames = topics::STEREO_FRAME.publisher(&node).unwrap();
+    let mut disparity_pub = topics::DISPARITY.publisher(&node).unwrap();
+    let mut ins = topics::INS.publisher(&node).unwrap();
+    let masks = topics::WATER_MASK.subscriber(&node).unwrap();
+    let maps = topics::LOCAL_MAP.subscriber(&node).unwrap();
+    let beats = topics::HEARTBEAT.subscriber(&node).unwrap();
+
+    // One frame: INS, the pair, then its disparity (`disparity` may be of another size or seq).
+    let mut send = |stamp: u64, frame_seq_offset: u64, disparity: &[f32], size: (u32, u32)| {
+        let mut s = InsState::default();
+        s.hdr = Header::new(ins.next_seq(), stamp, "test");
+        s.pose = f.vehicle;
+        ins.publish(&s).unwrap();
+        let seq = frames.next_seq();
+        let mut sample = frames.loan_slice(f.pair.len()).unwrap();
+        sample.payload_mut().copy_from_slice(&f.pair);
+        *sample.user_header_mut() = StereoFrameHeader {
+            hdr: Header::new(seq, stamp, "test"),
+            head: Name::new("color"),
+            width: f.width,
+            height: f.height,
+            stride: 3 * f.width,
+            encoding: PixelEncoding::Rgb8 as u32,
+        };
+        frames.send(sample).unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+        let mut sample = disparity_pub.loan_slice(disparity.len()).unwrap();
+        sample.payload_mut().copy_from_slice(disparity);
+        let mut camera = f.camera;
+        let scale = size.0 as f64 / f.width as f64;
+        camera.fx *= scale;
+        camera.fy *= scale;
+        camera.cx *= scale;
+        camera.cy *= scale;
+        *sample.user_header_mut() = DisparityHeader {
+            hdr: Header::new(disparity_pub.next_seq(), stamp, "test"),
+            frame_seq: seq + frame_seq_offset,
+            head: Name::new("color"),
+            width: size.0,
+            height: size.1,
+            num_disparities: 96,
+            camera,
+            stabilized_pose: Pose {
+                position: f.vehicle.position,
+                yaw: f.vehicle.yaw,
+                ..Pose::default()
+            },
+            ..DisparityHeader::default()
+        };
+        disparity_pub.send(sample).unwrap();
+    };
+
+    let mut stamp = 7_000_000_000u64;
+    let end = Instant::now() + Duration::from_secs(30);
+    let (mut mask, mut map) = (None, None);
+    while (mask.is_none() || map.is_none()) && Instant::now() < end {
+        stamp += 200_000_000;
+        send(stamp, 0, &f.disparity, (f.width, f.height));
+        let wait = Instant::now() + Duration::from_secs(3);
+        while (mask.is_none() || map.is_none()) && Instant::now() < wait {
+            std::thread::sleep(Duration::from_millis(20));
+            while let Some(s) = masks.receive().unwrap() {
+                let h = *s.user_header();
+                mask = Some((h, s.payload().to_vec()));
+            }
+            while let Some(s) = maps.receive().unwrap() {
+                map = Some((*s.user_header(), s.payload().to_vec()));
+            }
+        }
+    }
+    let (mh, mask) = mask.expect("no water mask");
+    let (lh, cells) = map.expect("no local map");
+    assert_eq!((mh.width, mh.height, mask.len()), (f.width, f.height, n));
+    assert_eq!(mh.head.as_str(), "color");
+    assert_eq!(mh.hdr.stamp_ns, lh.hdr.stamp_ns);
+    assert!(mh.regions >= 1, "{mh:?}");
+
+    // Water pixels lie on the puddle, and cover a good part of the puddles in view.
+    let water: Vec<usize> = (0..n)
+        .filter(|&i| mask[i] & water_cue::WATER != 0)
+        .collect();
+    let on_puddle = water
+        .iter()
+        .filter(|&&i| f.labels[i] == truth_class::PUDDLE)
+        .count();
+    let puddle_pixels = f
+        .labels
+        .iter()
+        .filter(|&&l| l == truth_class::PUDDLE)
+        .count();
+    assert!(water.len() >= 200, "{} water pixels", water.len());
+    assert!(
+        on_puddle as f64 >= 0.8 * water.len() as f64,
+        "{on_puddle} of {} water pixels on a puddle",
+        water.len()
+    );
+    assert!(
+        on_puddle as f64 >= 0.3 * puddle_pixels as f64,
+        "{on_puddle} of {puddle_pixels} puddle pixels found"
+    );
+    // Cue bits are there too, not only the fused one.
+    assert!(water.iter().any(|&i| mask[i] & water_cue::COLOR != 0));
+
+    // Water cells sit on the near puddle at its elevation.
+    let g = &lh.grid;
+    let (near_c, near_r, near_e) = f.puddles[0];
+    let mut count = 0;
+    for (i, c) in cells.iter().enumerate().filter(|(_, c)| c.water > 0) {
+        count += 1;
+        let p = g.cell_center(i as u32 % g.width, i as u32 / g.width);
+        let d = f
+            .puddles
+            .iter()
+            .map(|(c, r, _)| (p[0] - c[0]).hypot(p[1] - c[1]) - r)
+            .fold(f64::INFINITY, f64::min);
+        assert!(d <= 1.0, "water cell at {p:?} is {d:.2} m outside every puddle");
+        if (p[0] - near_c[0]).hypot(p[1] - near_c[1]) <= near_r {
+            assert!(
+                (c.elevation_cm as f64 / 100.0 - near_e).abs() <= 0.15,
+                "water elevation {} cm, puddle at {near_e:.2} m",
+                c.elevation_cm
+            );
+        }
+    }
+    assert!(count >= 4, "{count} water cells");
+    eprintln!(
+        "{} water pixels, {on_puddle} on a puddle of {puddle_pixels} puddle pixels; {count} water cells",
+        water.len()
+    );
+
+    // Disparity of a frame that was never sent, then one of another size: not fused, reported.
+    for (offset, size, expect) in [
+        (5, (f.width, f.height), "no colour frame"),
+        (0, (f.width / 2, f.height / 2), "not fused"),
+    ] {
+        stamp += 200_000_000;
+        let small: Vec<f32>;
+        let disparity = if size.0 == f.width {
+            &f.disparity[..]
+        } else {
+            small = (0..(size.0 * size.1) as usize)
+                .map(|i| {
+                    let (x, y) = (i % size.0 as usize, i / size.0 as usize);
+                    f.disparity[2 * y * f.width as usize + 2 * x] / 2.0
+                })
+                .collect();
+            &small[..]
+        };
+        send(stamp, offset, disparity, size);
+        let end = Instant::now() + Duration::from_secs(10);
+        let mut seen: Option<Heartbeat> = None;
+        while seen.is_none() && Instant::now() < end {
+            std::thread::sleep(Duration::from_millis(20));
+            while let Some(b) = beats.receive().unwrap() {
+                let b = *b.payload();
+                if b.hdr.source.as_str() == "perception" && b.last_error.as_str().contains(expect)
+                {
+                    seen = Some(b);
+                }
+            }
+        }
+        let beat = seen.unwrap_or_else(|| panic!("no heartbeat reporting '{expect}'"));
+        assert!(beat.rejected >= 1);
+        // The frame's local map still comes out, without a water mask.
+        let end = Instant::now() + Duration::from_secs(10);
+        let mut mapped = false;
+        while !mapped && Instant::now() < end {
+            std::thread::sleep(Duration::from_millis(20));
+            while let Some(s) = maps.receive().unwrap() {
+                mapped |= s.user_header().hdr.stamp_ns == stamp;
+            }
+        }
+        assert!(mapped, "no local map for the frame whose water was not fused");
+        while let Some(s) = masks.receive().unwrap() {
+            assert_ne!(s.user_header().hdr.stamp_ns, stamp);
+        }
+    }
+}
