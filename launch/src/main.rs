@@ -6,6 +6,7 @@ mod child;
 mod control;
 mod demo;
 mod eval;
+mod eval_perception;
 mod inspect;
 mod launchfile;
 mod mission;
