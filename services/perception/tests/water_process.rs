@@ -33,8 +33,8 @@ struct SimFrame {
 
 /// The colour head of the head-on trail scenario at 512x384 (the paper's size), `t` s in.
 fn render(t: f64) -> SimFrame {
-    let scenario = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../sim/scenarios/trail_puddles_headon.toml");
+    let scenario =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios/trail_puddles_headon.toml");
     let mut world = sim::scenario::load_world(&scenario).unwrap();
     world.scale_heads(0.5).unwrap();
     let mut sim = Simulator::new(world);
@@ -268,7 +268,10 @@ fn water_mask_and_water_cells_from_a_puddle_ahead() {
             .iter()
             .map(|(c, r, _)| (p[0] - c[0]).hypot(p[1] - c[1]) - r)
             .fold(f64::INFINITY, f64::min);
-        assert!(d <= 1.0, "water cell at {p:?} is {d:.2} m outside every puddle");
+        assert!(
+            d <= 1.0,
+            "water cell at {p:?} is {d:.2} m outside every puddle"
+        );
         if (p[0] - near_c[0]).hypot(p[1] - near_c[1]) <= near_r {
             assert!(
                 (c.elevation_cm as f64 / 100.0 - near_e).abs() <= 0.15,
@@ -308,8 +311,7 @@ fn water_mask_and_water_cells_from_a_puddle_ahead() {
             std::thread::sleep(Duration::from_millis(20));
             while let Some(b) = beats.receive().unwrap() {
                 let b = *b.payload();
-                if b.hdr.source.as_str() == "perception" && b.last_error.as_str().contains(expect)
-                {
+                if b.hdr.source.as_str() == "perception" && b.last_error.as_str().contains(expect) {
                     seen = Some(b);
                 }
             }
@@ -325,7 +327,10 @@ fn water_mask_and_water_cells_from_a_puddle_ahead() {
                 mapped |= s.user_header().hdr.stamp_ns == stamp;
             }
         }
-        assert!(mapped, "no local map for the frame whose water was not fused");
+        assert!(
+            mapped,
+            "no local map for the frame whose water was not fused"
+        );
         while let Some(s) = masks.receive().unwrap() {
             assert_ne!(s.user_header().hdr.stamp_ns, stamp);
         }
