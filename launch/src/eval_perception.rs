@@ -40,6 +40,16 @@ struct ObjectTally {
     nearest_m: f64,
 }
 
+/// A false water region: time since the first mask, size, share on true water, pixels carrying
+/// each cue (colour, texture, reflection, zero disparity), mean image row.
+struct FalseRegion {
+    time_ns: u64,
+    pixels: u32,
+    share_on_water: f32,
+    cues: [u32; 4],
+    mean_row: u32,
+}
+
 /// Per-body water figures.
 #[derive(Default, Clone)]
 struct BodyTally {
@@ -69,8 +79,8 @@ pub struct PerceptionEval {
     truth_pixels_found: u64,
     ranges: RangeTable,
     bodies: BTreeMap<u32, BodyTally>,
-    /// (stamp, pixels, share on true water) of the first false regions, for looking at them.
-    false_regions: Vec<(u64, u32, f32)>,
+    /// The first false regions, for looking at them.
+    false_regions: Vec<FalseRegion>,
     first_stamp: Option<u64>,
     map_water_cells: u64,
     map_water_cells_on_body: u64,
@@ -261,11 +271,34 @@ impl PerceptionEval {
         let first = *self.first_stamp.get_or_insert(mh.hdr.stamp_ns);
         for r in score.regions.iter().filter(|r| r.is_false) {
             if self.false_regions.len() < 20 {
-                self.false_regions.push((
-                    mh.hdr.stamp_ns.saturating_sub(first),
-                    r.pixels,
-                    r.truth_share,
-                ));
+                // Which cues made it, and where (mean row), to tell what fooled the rule base.
+                let (mut cues, mut rows) = ([0u32; 4], 0u64);
+                for (i, _) in self
+                    .regions
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &l)| l == r.label)
+                {
+                    for (k, bit) in [
+                        water_cue::COLOR,
+                        water_cue::TEXTURE,
+                        water_cue::REFLECTION,
+                        water_cue::ZERO_DISPARITY,
+                    ]
+                    .into_iter()
+                    .enumerate()
+                    {
+                        cues[k] += (mask[i] & bit != 0) as u32;
+                    }
+                    rows += (i / w) as u64;
+                }
+                self.false_regions.push(FalseRegion {
+                    time_ns: mh.hdr.stamp_ns.saturating_sub(first),
+                    pixels: r.pixels,
+                    share_on_water: r.truth_share,
+                    cues,
+                    mean_row: (rows / r.pixels.max(1) as u64) as u32,
+                });
             }
         }
         for (i, &m) in mask.iter().enumerate() {
@@ -382,9 +415,10 @@ impl PerceptionEval {
                 "bodies": bodies,
                 "false_region_frames": self.false_frames,
                 "false_region_frame_share": rate(self.false_frames, self.water_frames),
-                "false_regions": self.false_regions.iter().map(|&(t, px, share)| json!({
-                    "time_s": round4(t as f64 * 1e-9), "pixels": px,
-                    "share_on_water": round4(share as f64)})).collect::<Vec<_>>(),
+                "false_regions": self.false_regions.iter().map(|f| json!({
+                    "time_s": round4(f.time_ns as f64 * 1e-9), "pixels": f.pixels,
+                    "share_on_water": round4(f.share_on_water as f64),
+                    "cue_pixels": f.cues, "mean_row": f.mean_row})).collect::<Vec<_>>(),
                 "pixel_precision": rate(self.water_pixels_on_truth, self.water_pixels),
                 "pixel_recall": rate(self.truth_pixels_found, self.truth_pixels),
                 "map_water_cells": self.map_water_cells,

@@ -162,9 +162,11 @@ fn water_mask_and_water_cells_from_a_puddle_ahead() {
 
     // One frame: INS, the pair, then its disparity (`disparity` may be of another size or seq).
     let mut send = |stamp: u64, frame_seq_offset: u64, disparity: &[f32], size: (u32, u32)| {
-        let mut s = InsState::default();
-        s.hdr = Header::new(ins.next_seq(), stamp, "test");
-        s.pose = f.vehicle;
+        let s = InsState {
+            hdr: Header::new(ins.next_seq(), stamp, "test"),
+            pose: f.vehicle,
+            ..InsState::default()
+        };
         ins.publish(&s).unwrap();
         let seq = frames.next_seq();
         let mut sample = frames.loan_slice(f.pair.len()).unwrap();
