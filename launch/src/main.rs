@@ -102,7 +102,7 @@ enum Cmd {
     },
     /// Reproduce the project's performance figures on this machine.
     Bench {
-        /// Which benchmark: ipc, recorder, sim.
+        /// Which benchmark: ipc, recorder, sim, pipeline, mapper, tracker, hazard, water.
         name: String,
         /// One JSON object per line per figure.
         #[arg(long)]

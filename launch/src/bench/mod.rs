@@ -41,12 +41,16 @@ impl Figure {
     }
 }
 
-pub const NAMES: &[&str] = &["ipc", "recorder", "sim", "pipeline", "mapper", "tracker"];
+pub const NAMES: &[&str] = &[
+    "ipc", "recorder", "sim", "pipeline", "mapper", "tracker", "hazard", "water",
+];
 
 /// Benchmarks that live in a service's own binary (`<program> bench ...`): `usv bench` runs them so
 /// every figure has one entry point. Arguments may name checkout files (`@` + relative path).
 const SERVICE_BENCHES: &[(&str, &str, &[&str])] = &[
     ("mapper", "mapper", &[]),
+    ("hazard", "perception", &["hazard"]),
+    ("water", "perception", &["water"]),
     (
         "tracker",
         "tracker",

@@ -10,7 +10,7 @@
 //! - [`eval`]: scoring a hazard map against ground truth.
 //! - [`service`]: the service's configuration and per-frame glue (INS matching, checks).
 //! - [`train`]: offline training from rendered scenarios (sim + stereo libraries).
-//! - [`bench`]: the `perception bench hazard` figures.
+//! - [`bench`]: the `perception bench hazard` figures; [`water_bench`]: `perception bench water`.
 //! - [`synthetic`]: ray-cast disparity of buoys on a flat sea, for tests and the benchmark.
 //!
 //! - [`water_stage`]: water detection (the `water` library) on the configured colour heads: the
@@ -24,6 +24,7 @@ pub mod model;
 pub mod service;
 pub mod synthetic;
 pub mod train;
+pub mod water_bench;
 pub mod water_stage;
 
 pub use hazard::{HazardConfig, HazardMapper};

@@ -8,6 +8,7 @@
 //!
 //! `perception train --out FILE`: fits the hazard classifier on rendered scenarios.
 //! `perception bench hazard`: hazard-map time per 1280x960 frame.
+//! `perception bench water`: water detection time per 512x384 colour frame.
 
 use anyhow::Context;
 use messages::{topics, Header, LocalMapHeader, WaterMaskHeader};
@@ -49,6 +50,8 @@ enum Command {
 enum BenchWhich {
     /// Hazard map from a 1280x960 disparity image.
     Hazard(perception::bench::BenchArgs),
+    /// Water detection on simulator colour frames at 512x384, as the service runs it.
+    Water(perception::water_bench::WaterBenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +65,9 @@ fn main() -> ExitCode {
         Command::Bench {
             which: BenchWhich::Hazard(args),
         } => perception::bench::run(&args),
+        Command::Bench {
+            which: BenchWhich::Water(args),
+        } => perception::water_bench::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,125 +4,17 @@
 //! puddle, at its elevation, come out. A disparity of another frame or another size is not fused and
 //! is reported in the heartbeat, while the maps go on.
 
-use messages::{
-    topics, truth_class, water_cue, CameraModel, DisparityHeader, Header, Heartbeat, InsState,
-    Name, PixelEncoding, Pose, StereoFrameHeader,
-};
-use nalgebra::Vector3;
+use messages::{topics, truth_class, water_cue, Header, Heartbeat, InsState};
+use perception::water_bench::{render_colour_frame, ColourFrame};
 use runtime::Ports;
-use sim::{Simulator, WaterRegion};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use stereo::bm::BmParams;
-use stereo::calib::Calibration;
-use stereo::pipeline::{FramePipeline, PlaneSearch};
-use stereo::MatcherConfig;
-
-struct SimFrame {
-    width: u32,
-    height: u32,
-    /// Left then right plane, Rgb8.
-    pair: Vec<u8>,
-    disparity: Vec<f32>,
-    labels: Vec<u8>,
-    camera: CameraModel,
-    vehicle: Pose,
-    /// Puddles: centre, radius, elevation.
-    puddles: Vec<([f64; 2], f64, f64)>,
-}
 
 /// The colour head of the head-on trail scenario at 512x384 (the paper's size), `t` s in.
-fn render(t: f64) -> SimFrame {
+fn render(t: f64) -> ColourFrame {
     let scenario =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios/trail_puddles_headon.toml");
-    let mut world = sim::scenario::load_world(&scenario).unwrap();
-    world.scale_heads(0.5).unwrap();
-    let mut sim = Simulator::new(world);
-    let throttle = sim.state().throttle;
-    while sim.time() + 1e-9 < t {
-        sim.step(
-            sim::Command {
-                rudder: 0.0,
-                throttle,
-            },
-            0.05,
-        );
-    }
-    let index = sim.world.head_index("color").unwrap();
-    let head = sim.world.heads[index].clone();
-    let (w, h) = (head.width as usize, head.height as usize);
-    let mut pair = vec![0u8; 2 * head.image_len()];
-    let (left, right) = pair.split_at_mut(head.image_len());
-    sim.render_head(index, left, right).unwrap();
-    let mut truth_disparity = vec![0f32; w * h];
-    let mut labels = vec![0u8; w * h];
-    sim.render_truth(index, &mut truth_disparity, &mut labels)
-        .unwrap();
-    // Renderer labels start at sky = 0, the contract's classes at sky = 1.
-    labels.iter_mut().for_each(|l| *l += 1);
-    let luma = |p: &[u8]| -> Vec<u8> {
-        p.chunks_exact(3)
-            .map(|c| water::cues::luma(c[0], c[1], c[2]))
-            .collect()
-    };
-    let calib = Calibration::ideal(w, h, head.focal_px(), head.baseline);
-    let matcher = MatcherConfig::Bm(BmParams {
-        num_disparities: 96,
-        ..BmParams::default()
-    });
-    let mut pipeline = FramePipeline::new(&calib, &matcher, PlaneSearch::default()).unwrap();
-    let out = pipeline.process(w, h, &luma(left), &luma(right)).unwrap();
-    let mut disparity = vec![f32::NAN; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            disparity[y * w + x] = out.disparity.get(x, y).unwrap_or(f32::NAN);
-        }
-    }
-    let rot = head.mount.rotation();
-    let lens = head.mount.position + rot * Vector3::new(0.0, head.baseline / 2.0, 0.0);
-    let camera = CameraModel {
-        fx: calib.left.fx,
-        fy: calib.left.fy,
-        cx: calib.left.cx,
-        cy: calib.left.cy,
-        baseline_m: head.baseline,
-        mount: Pose {
-            position: lens.into(),
-            roll: head.mount.rpy[0],
-            pitch: head.mount.rpy[1],
-            yaw: head.mount.rpy[2],
-        },
-    };
-    let p = &sim.state().pose;
-    let vehicle = Pose {
-        position: p.position.into(),
-        roll: p.rpy[0],
-        pitch: p.rpy[1],
-        yaw: p.rpy[2],
-    };
-    let puddles = sim
-        .truth()
-        .water
-        .iter()
-        .filter_map(|r| match r {
-            WaterRegion::Disc {
-                center,
-                radius,
-                elevation,
-            } => Some((*center, *radius, *elevation)),
-            WaterRegion::Plane { .. } => None,
-        })
-        .collect();
-    SimFrame {
-        width: w as u32,
-        height: h as u32,
-        pair,
-        disparity,
-        labels,
-        camera,
-        vehicle,
-        puddles,
-    }
+    render_colour_frame(&scenario, "color", 0.5, t).unwrap()
 }
 
 fn write_config(dir: &Path) -> PathBuf {
@@ -171,14 +63,7 @@ fn water_mask_and_water_cells_from_a_puddle_ahead() {
         let seq = frames.next_seq();
         let mut sample = frames.loan_slice(f.pair.len()).unwrap();
         sample.payload_mut().copy_from_slice(&f.pair);
-        *sample.user_header_mut() = StereoFrameHeader {
-            hdr: Header::new(seq, stamp, "test"),
-            head: Name::new("color"),
-            width: f.width,
-            height: f.height,
-            stride: 3 * f.width,
-            encoding: PixelEncoding::Rgb8 as u32,
-        };
+        *sample.user_header_mut() = f.frame_header("color", seq, stamp);
         frames.send(sample).unwrap();
         std::thread::sleep(Duration::from_millis(20));
         let mut sample = disparity_pub.loan_slice(disparity.len()).unwrap();
@@ -189,21 +74,10 @@ fn water_mask_and_water_cells_from_a_puddle_ahead() {
         camera.fy *= scale;
         camera.cx *= scale;
         camera.cy *= scale;
-        *sample.user_header_mut() = DisparityHeader {
-            hdr: Header::new(disparity_pub.next_seq(), stamp, "test"),
-            frame_seq: seq + frame_seq_offset,
-            head: Name::new("color"),
-            width: size.0,
-            height: size.1,
-            num_disparities: 96,
-            camera,
-            stabilized_pose: Pose {
-                position: f.vehicle.position,
-                yaw: f.vehicle.yaw,
-                ..Pose::default()
-            },
-            ..DisparityHeader::default()
-        };
+        let mut header = f.disparity_header("color", seq + frame_seq_offset, stamp);
+        header.hdr.seq = disparity_pub.next_seq();
+        (header.width, header.height, header.camera) = (size.0, size.1, camera);
+        *sample.user_header_mut() = header;
         disparity_pub.send(sample).unwrap();
     };
 
