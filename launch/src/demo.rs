@@ -53,6 +53,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         },
         algo: "bm".into(),
         closed_loop: true,
+        perception: false,
         record: Some(Recording {
             file: recording.clone(),
             topics: Vec::new(),

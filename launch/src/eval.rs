@@ -135,6 +135,7 @@ fn eval_scenario(
         },
         algo: args.algo.clone(),
         closed_loop: args.closed_loop,
+        perception: true,
         record: args.record.then(|| crate::pipeline::Recording {
             file: dir.join("run.mcap"),
             topics: Vec::new(),
@@ -158,9 +159,11 @@ fn eval_scenario(
         victims.extend(["perception", "mapper", "tracker", "sequencer"].map(String::from));
         Chaos::new(seed, victims, Some("perception".into()))
     });
+    let perception_report;
     let (metrics, obs, services, wall) = {
         let node = runtime::tool_node("usv-eval")?;
         let observer = Observer::new(&node)?;
+        let mut perception = crate::eval_perception::PerceptionEval::new(&node, &head)?;
         let truth = topics::TRUTH_IMAGE.subscriber(&node)?;
         let shutdown = runtime::Shutdown::install()?;
         let started = Instant::now();
@@ -195,6 +198,7 @@ fn eval_scenario(
                     }
                 }
             }
+            perception.poll()?;
             if let Some(chaos) = &mut chaos {
                 chaos.step(&session, &obs)?;
             }
@@ -225,6 +229,8 @@ fn eval_scenario(
             eprintln!();
         }
         metrics.frames = obs.frames;
+        perception.poll()?;
+        perception_report = perception.report();
         (metrics, obs, services, started.elapsed().as_secs_f64())
     };
     session.down()?;
@@ -279,6 +285,7 @@ fn eval_scenario(
         "chaos": chaos.map(|c| c.report()),
         "recording": recording,
         "overview": picture,
+        "perception": perception_report,
     }))
 }
 
@@ -421,6 +428,7 @@ fn print_report(r: &serde_json::Value) {
         f(&p["height_error_m"]["p90_abs"], 1.0),
         f(&p["height_error_m"]["median"], 1.0),
     );
+    crate::eval_perception::print(&r["perception"]);
     let b = &r["behaviour"];
     if b.is_object() {
         println!(

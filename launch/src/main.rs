@@ -7,6 +7,7 @@ mod control;
 mod demo;
 mod eval;
 mod eval_tracking;
+mod eval_perception;
 mod inspect;
 mod launchfile;
 mod mission;
@@ -102,7 +103,7 @@ enum Cmd {
     },
     /// Reproduce the project's performance figures on this machine.
     Bench {
-        /// Which benchmark: ipc, recorder, sim, pipeline, stereo, hazard, mapper, tracker.
+        /// Which benchmark: ipc, recorder, sim, pipeline, stereo, hazard, water, mapper, tracker.
         name: String,
         /// One JSON object per line per figure.
         #[arg(long)]

@@ -66,6 +66,9 @@ pub struct PipelineSpec {
     pub algo: String,
     /// Add perception, mapper, tracker and sequencer (driving the boat when the source is the sim).
     pub closed_loop: bool,
+    /// Add perception alone to an open-loop run (hazard-map and water scoring); implied by
+    /// `closed_loop`.
+    pub perception: bool,
     pub record: Option<Recording>,
     /// Longest wait for the pipeline per frame before the source goes on without it (ms).
     pub lockstep_timeout_ms: u64,
@@ -169,6 +172,15 @@ pub fn write(spec: &PipelineSpec, dir: &Path) -> anyhow::Result<WrittenSet> {
     }
     let mut mission = None;
     let mut sequencer_config = None;
+    if spec.perception && !spec.closed_loop {
+        writeln!(
+            services,
+            "[[service]]\nname = \"perception\"\nprogram = \"perception\"\nargs = [\"run\", \"--config\", \"{}\", \"--heads\", \"{}\"]\n",
+            checkout_file("launch/sets/perception.toml")?.canonicalize()?.display(),
+            heads.join(",")
+        )?;
+        pipeline.push("perception".into());
+    }
     if spec.closed_loop {
         let config = |file: &str| -> anyhow::Result<PathBuf> {
             Ok(checkout_file(&format!("launch/sets/{file}"))?.canonicalize()?)
@@ -339,6 +351,7 @@ pub fn run_set(args: SetArgs) -> anyhow::Result<()> {
         },
         algo: args.algo,
         closed_loop: args.closed_loop,
+        perception: false,
         record: args.record.map(|file| Recording {
             file,
             topics: Vec::new(),

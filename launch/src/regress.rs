@@ -113,6 +113,7 @@ fn spec(config: &RegressConfig, scenario: &Path, source: Source) -> PipelineSpec
         source,
         algo: "bm".into(),
         closed_loop: true,
+        perception: false,
         record: None,
         lockstep_timeout_ms: 10_000,
     }

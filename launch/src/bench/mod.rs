@@ -42,7 +42,7 @@ impl Figure {
 }
 
 pub const NAMES: &[&str] = &[
-    "ipc", "recorder", "sim", "pipeline", "stereo", "hazard", "mapper", "tracker",
+    "ipc", "recorder", "sim", "pipeline", "stereo", "hazard", "water", "mapper", "tracker",
 ];
 
 /// A benchmark that lives in another program (`<program> <args...>`): `usv bench` runs it so every
@@ -73,7 +73,13 @@ const DELEGATED: &[Delegated] = &[
         name: "hazard",
         program: "perception",
         args: &["bench", "hazard"],
-        quick: &["--frames", "10"],
+        quick: &["--quick"],
+    },
+    Delegated {
+        name: "water",
+        program: "perception",
+        args: &["bench", "water"],
+        quick: &["--quick"],
     },
     // Our BM and SGM beside OpenCV StereoBM and SGBM-3WAY, same inputs, same run (the script
     // pip-installs opencv-python-headless when it is missing).

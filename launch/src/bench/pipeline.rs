@@ -51,6 +51,7 @@ pub fn run(quick: bool) -> anyhow::Result<Vec<Figure>> {
             },
             algo: "bm".into(),
             closed_loop: true,
+            perception: false,
             record: None,
             lockstep_timeout_ms: 5000,
         };

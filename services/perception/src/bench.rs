@@ -20,6 +20,9 @@ pub struct BenchArgs {
     /// Hazard model (default: the committed one).
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// A few frames only.
+    #[arg(long)]
+    pub quick: bool,
 }
 
 pub fn default_model_path() -> PathBuf {
@@ -57,6 +60,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         },
         ..Default::default()
     };
+    let frames = if args.quick { 5 } else { args.frames.max(1) };
     let s = scene();
     let mut disparity = Vec::new();
     s.render(&mut disparity);
@@ -82,9 +86,9 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             HazardMapper::new(config.clone(), model.clone()).map_err(|e| anyhow::anyhow!("{e}"))?;
         let mut out =
             vec![MapCell::default(); config.grid.width as usize * config.grid.height as usize];
-        let mut times = Vec::with_capacity(args.frames);
+        let mut times = Vec::with_capacity(frames);
         let mut summary = None;
-        for i in 0..args.frames + 3 {
+        for i in 0..frames + 3 {
             // The vessel creeps north so the grid scrolls and the memory is exercised.
             let mut header = s.header(1_000_000_000 + i as u64 * 100_000_000, "hh_left");
             header.stabilized_pose.position[1] = 0.4 * i as f64;

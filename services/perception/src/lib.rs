@@ -10,11 +10,11 @@
 //! - [`eval`]: scoring a hazard map against ground truth.
 //! - [`service`]: the service's configuration and per-frame glue (INS matching, checks).
 //! - [`train`]: offline training from rendered scenarios (sim + stereo libraries).
-//! - [`bench`]: the `perception bench hazard` figures.
+//! - [`bench`]: the `perception bench hazard` figures; [`water_bench`]: `perception bench water`.
 //! - [`synthetic`]: ray-cast disparity of buoys on a flat sea, for tests and the benchmark.
 //!
-//! Water detection (colour, texture, reflections, zero disparity) is a separate library; the
-//! service is where its mask will be produced per frame next to the hazard map.
+//! - [`water_stage`]: water detection (the `water` library) on the configured colour heads: the
+//!   frame's left image kept until its disparity arrives, the cue mask, water cells for the local map.
 
 pub mod bench;
 pub mod eval;
@@ -24,6 +24,8 @@ pub mod model;
 pub mod service;
 pub mod synthetic;
 pub mod train;
+pub mod water_bench;
+pub mod water_stage;
 
 pub use hazard::{HazardConfig, HazardMapper};
 pub use model::HazardModel;

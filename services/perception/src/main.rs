@@ -2,13 +2,18 @@
 //! configured heads (`usv/stereo/disparity`) into one local hazard map per camera frame
 //! (`usv/perception/local_map`; the heads of a frame are merged), with the vessel pose from the INS
 //! sample nearest the frame stamp. The frame stamp is reported in the heartbeat once its map is out.
+//! With `[water] heads` configured, the left images of those heads (`usv/sensors/stereo_frame`) go
+//! through water detection together with their disparity: the cue mask is published on
+//! `usv/perception/water_mask` and the water cells join the frame's local map.
 //!
 //! `perception train --out FILE`: fits the hazard classifier on rendered scenarios.
 //! `perception bench hazard`: hazard-map time per 1280x960 frame.
+//! `perception bench water`: water detection time per 512x384 colour frame.
 
 use anyhow::Context;
-use messages::{topics, Header, LocalMapHeader};
+use messages::{topics, Header, LocalMapHeader, WaterMaskHeader};
 use perception::service::{FrameMerge, Perception, ServiceConfig};
+use perception::water_stage::{self, WaterStage};
 use runtime::{Service, Wake};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -45,6 +50,8 @@ enum Command {
 enum BenchWhich {
     /// Hazard map from a 1280x960 disparity image.
     Hazard(perception::bench::BenchArgs),
+    /// Water detection on simulator colour frames at 512x384, as the service runs it.
+    Water(perception::water_bench::WaterBenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -58,6 +65,9 @@ fn main() -> ExitCode {
         Command::Bench {
             which: BenchWhich::Hazard(args),
         } => perception::bench::run(&args),
+        Command::Bench {
+            which: BenchWhich::Water(args),
+        } => perception::water_bench::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -81,16 +91,30 @@ fn run(config_path: PathBuf, heads: Vec<String>) -> anyhow::Result<()> {
     let disparity = service.subscriber(&topics::DISPARITY)?;
     let ins = service.subscriber(&topics::INS)?;
     let mut local_map = service.publisher(&topics::LOCAL_MAP)?;
+    // Water detection needs the colour images as well; without water heads nothing else is opened.
+    let mut water = WaterStage::new(&config.water);
+    let (images, mut water_mask) = match water {
+        Some(_) => (
+            Some(service.subscriber(&topics::STEREO_FRAME)?),
+            Some(service.publisher(&topics::WATER_MASK)?),
+        ),
+        None => (None, None),
+    };
     let source = service.name().to_string();
     let cells = perception.cell_count();
     tracing::info!(
         heads = ?config.heads,
+        water_heads = ?config.water.heads,
         grid = ?config.grid,
         model = %model_path.display(),
         "perception ready"
     );
     let deadline = Duration::from_millis(config.frame_deadline_ms);
-    let inputs = [disparity.input(Some(deadline)), ins.input(None)];
+    let mut inputs = vec![disparity.input(Some(deadline)), ins.input(None)];
+    if let Some(images) = &images {
+        // Woken by every frame, so a frame is copied out before newer heads' frames overwrite it.
+        inputs.push(images.input(None));
+    }
     let mut frame = FrameMerge::new(&config.heads, cells);
     let mut frame_started = Instant::now();
     // A head that does not deliver (its stereo service died) must not hold the frame forever.
@@ -117,6 +141,14 @@ fn run(config_path: PathBuf, heads: Vec<String>) -> anyhow::Result<()> {
             let s = *sample.payload();
             if let Err(e) = perception.add_ins(s) {
                 health.reject(0, &format!("INS sample {}: {e}", s.hdr.seq));
+            }
+        }
+        if let (Some(images), Some(water)) = (&images, &mut water) {
+            while let Some(sample) = images.receive()? {
+                if let Err(e) = water.add_frame(sample.user_header(), sample.payload()) {
+                    // The frame's stamp is not handled here: its disparity still makes the map.
+                    health.reject(0, &e.to_string());
+                }
             }
         }
         if wake != Wake::Input(0) {
@@ -148,9 +180,41 @@ fn run(config_path: PathBuf, heads: Vec<String>) -> anyhow::Result<()> {
             let header = Header::new(0, stamp, "");
             match perception.process(h, sample.payload(), &mut frame.scratch, header) {
                 Ok((map_header, summary)) => {
-                    // Water detection (the `water` library) runs here on the same frame and will
-                    // publish `usv/perception/water_mask`; this service does not produce it yet.
                     tracing::debug!(?summary, "local map of one head");
+                    if let (Some(water), Some(mask_pub)) = (&mut water, &mut water_mask) {
+                        if water.wants(h.head.as_str()) {
+                            let vehicle = perception.vessel_pose(h);
+                            match water.process(h, sample.payload(), &vehicle) {
+                                Ok(out) => {
+                                    let d = &out.detection;
+                                    let mut mask = mask_pub.loan_slice(d.mask.len())?;
+                                    mask.payload_mut().copy_from_slice(d.mask);
+                                    *mask.user_header_mut() = WaterMaskHeader {
+                                        hdr: Header::new(mask_pub.next_seq(), stamp, &source),
+                                        frame_seq: h.frame_seq,
+                                        head: h.head,
+                                        width: out.width,
+                                        height: out.height,
+                                        regions: d.regions.len() as u32,
+                                    };
+                                    mask_pub.send(mask)?;
+                                    let marked = water_stage::mark_water(
+                                        d,
+                                        &map_header.grid,
+                                        &mut frame.scratch,
+                                    );
+                                    tracing::debug!(
+                                        regions = d.regions.len(),
+                                        cells = marked,
+                                        "water"
+                                    );
+                                }
+                                // Not fused; the hazard map of the frame still goes out, so the
+                                // stamp is left to it.
+                                Err(e) => health.reject(0, &format!("{}: {e}", what())),
+                            }
+                        }
+                    }
                     frame.add_scratch(h.head.as_str(), map_header);
                 }
                 Err(e) => {

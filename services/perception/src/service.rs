@@ -49,6 +49,9 @@ pub struct ServiceConfig {
     pub temporal: TemporalConfig,
     #[serde(default)]
     pub cost: CostConfig,
+    /// Water detection on colour heads; off unless `[water] heads` names some.
+    #[serde(default)]
+    pub water: crate::water_stage::WaterSettings,
 }
 
 fn default_deadline() -> u64 {
@@ -311,11 +314,11 @@ fn merge_cell(acc: &mut MapCell, new: &MapCell) {
         *acc = *new;
         return;
     }
-    // The better-observed head's elevation; ties broken by value so the merge does not depend on
-    // which head arrived first.
-    let elevation = (new.observed, new.elevation_cm)
-        .max((acc.observed, acc.elevation_cm))
-        .1;
+    // Water's elevation is the water surface's; otherwise the better-observed head's elevation, ties
+    // broken by value so the merge does not depend on which head arrived first.
+    let elevation = (new.water.min(1), new.observed, new.elevation_cm)
+        .max((acc.water.min(1), acc.observed, acc.elevation_cm))
+        .2;
     *acc = MapCell {
         hazard: acc.hazard.max(new.hazard),
         cost: acc.cost.max(new.cost),
