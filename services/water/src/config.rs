@@ -51,8 +51,13 @@ pub struct ColorParams {
     pub sky_quantile: f64,
     /// Rows just above the horizon are skipped for the sky reference (tree lines, haze).
     pub sky_margin_px: usize,
-    /// Used when too little sky is in view (RGB, 0..=255).
+    /// Used when too little sky is in view (RGB, 0..=255), or when what was measured is not sky.
     pub default_sky_rgb: [u8; 3],
+    /// Hues (deg, from..=to) a saturated daytime sky can have. A measured reference that is
+    /// saturated (at least `hue_min_saturation`) with a hue outside is foliage filling the upper
+    /// image (a tree line close ahead), not sky: the default sky is used instead, or green ground
+    /// would look like its reflection.
+    pub sky_hue_range_deg: [f32; 2],
     /// Saturation (0..=1) may exceed the sky's by this much...
     pub saturation_margin: f32,
     /// ...but never this absolute value (saturated pixels also need the sky's hue, below).
@@ -72,6 +77,7 @@ impl Default for ColorParams {
             sky_quantile: 0.6,
             sky_margin_px: 6,
             default_sky_rgb: [170, 190, 220],
+            sky_hue_range_deg: [170.0, 270.0],
             saturation_margin: 0.12,
             max_saturation: 0.6,
             min_value_rel: 0.30,

@@ -105,7 +105,12 @@ pub fn sky_reference(
         }
     }
     let m = m.max(1) as f32;
-    SkyReference::from_rgb(sum.map(|s| s as f32 / m), m as usize)
+    let sky = SkyReference::from_rgb(sum.map(|s| s as f32 / m), m as usize);
+    let [from, to] = p.sky_hue_range_deg;
+    if sky.saturation >= p.hue_min_saturation && !(from..=to).contains(&sky.hue) {
+        return SkyReference::from_rgb(p.default_sky_rgb.map(|c| c as f32), 0);
+    }
+    sky
 }
 
 /// Whether one pixel's colour is consistent with a sky reflection.
@@ -319,5 +324,39 @@ mod tests {
         assert!(!test(115, 92, 64), "dirt");
         assert!(!test(46, 72, 23), "grass");
         assert!(!test(20, 20, 24), "too dark");
+    }
+
+    #[test]
+    fn foliage_above_the_horizon_is_not_taken_for_the_sky() {
+        let p = ColorParams::default();
+        let (w, h) = (40, 30);
+        let horizon = vec![20.0f32; w];
+        let mut hist = [0u32; 256];
+        let image = |top: [u8; 3]| -> Vec<u8> {
+            (0..w * h)
+                .flat_map(|i| if i / w < 10 { top } else { [90, 80, 60] })
+                .collect()
+        };
+        // A pale blue sky is measured as it is.
+        let sky = sky_reference(&image([175, 195, 230]), w, h, &horizon, &p, &mut hist);
+        assert!(
+            sky.pixels > 0 && (sky.rgb[2] - 230.0).abs() < 1e-3,
+            "{sky:?}"
+        );
+        // Overcast (grey, no hue to speak of) too.
+        let sky = sky_reference(&image([200, 200, 204]), w, h, &horizon, &p, &mut hist);
+        assert!(sky.pixels > 0, "{sky:?}");
+        // A tree line filling the top of the image is not sky: the default is used, and grass
+        // is then not a reflection of it.
+        let sky = sky_reference(&image([118, 154, 120]), w, h, &horizon, &p, &mut hist);
+        assert_eq!(sky.pixels, 0, "{sky:?}");
+        assert_eq!(sky.rgb, p.default_sky_rgb.map(|c| c as f32));
+        let (hh, ss, vv) = hsv(100, 140, 95);
+        assert!(!is_sky_reflection(hh, ss, vv, &sky, &p));
+        let foliage = SkyReference::from_rgb([118.0, 154.0, 120.0], 100);
+        assert!(
+            is_sky_reflection(hh, ss, vv, &foliage, &p),
+            "the failure it prevents"
+        );
     }
 }
