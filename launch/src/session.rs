@@ -26,7 +26,7 @@ impl Session {
         std::env::set_var("USV_RUN_DIR", &run_dir);
         let log = out_dir.join(format!("{tag}.log"));
         let file = std::fs::File::create(&log)?;
-        let supervisor = Command::new(std::env::current_exe()?)
+        let supervisor = Command::new(usv_program()?)
             .arg("up")
             .arg(set)
             .stdout(file.try_clone()?)
@@ -146,6 +146,18 @@ const STACK_PROGRAMS: [&str; 8] = [
 /// when run that way (cargo sets `CARGO` and `CARGO_MANIFEST_DIR`), build the rest of the workspace's
 /// programs too (a no-op when they are fresh, and it keeps them from going stale beside a new `usv`);
 /// otherwise say what to do when one is missing.
+/// This program's path for starting another `usv`. When run through `cargo run`, the build in
+/// [`ensure_stack_built`] may relink `usv` itself (the workspace build unifies features differently
+/// from `-p launch`); Linux then reports the running image as "<path> (deleted)", while the fresh
+/// binary sits at the original path.
+pub fn usv_program() -> anyhow::Result<PathBuf> {
+    let exe = std::env::current_exe()?;
+    Ok(match exe.to_str().and_then(|s| s.strip_suffix(" (deleted)")) {
+        Some(path) => PathBuf::from(path),
+        None => exe,
+    })
+}
+
 pub fn ensure_stack_built() -> anyhow::Result<()> {
     let exe_dir = std::env::current_exe()?
         .parent()

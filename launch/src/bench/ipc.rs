@@ -148,7 +148,7 @@ pub fn run(quick: bool) -> anyhow::Result<Vec<Figure>> {
 }
 
 fn spawn_peer(plan: &Plan, extra: &[String]) -> anyhow::Result<std::process::Child> {
-    let exe = std::env::current_exe()?;
+    let exe = crate::session::usv_program()?;
     let mut cmd = Command::new(exe);
     cmd.args(["bench-peer", "--wake"])
         .arg(format!("{:?}", plan.wake).to_lowercase())
