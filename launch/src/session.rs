@@ -152,10 +152,12 @@ const STACK_PROGRAMS: [&str; 8] = [
 /// binary sits at the original path.
 pub fn usv_program() -> anyhow::Result<PathBuf> {
     let exe = std::env::current_exe()?;
-    Ok(match exe.to_str().and_then(|s| s.strip_suffix(" (deleted)")) {
-        Some(path) => PathBuf::from(path),
-        None => exe,
-    })
+    Ok(
+        match exe.to_str().and_then(|s| s.strip_suffix(" (deleted)")) {
+            Some(path) => PathBuf::from(path),
+            None => exe,
+        },
+    )
 }
 
 pub fn ensure_stack_built() -> anyhow::Result<()> {
