@@ -9,7 +9,6 @@ use messages::{
     CameraModel, DisparityHeader, GridGeometry, Header, MapCell, Name, PixelEncoding, Pose,
     StereoFrameHeader,
 };
-use nalgebra::Vector3;
 use sim::{Simulator, WaterRegion};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -131,21 +130,7 @@ pub fn render_colour_frame(
             disparity[y * w + x] = out.disparity.get(x, y).unwrap_or(f32::NAN);
         }
     }
-    let rot = h.mount.rotation();
-    let lens = h.mount.position + rot * Vector3::new(0.0, h.baseline / 2.0, 0.0);
-    let camera = CameraModel {
-        fx: calib.left.fx,
-        fy: calib.left.fy,
-        cx: calib.left.cx,
-        cy: calib.left.cy,
-        baseline_m: h.baseline,
-        mount: Pose {
-            position: lens.into(),
-            roll: h.mount.rpy[0],
-            pitch: h.mount.rpy[1],
-            yaw: h.mount.rpy[2],
-        },
-    };
+    let camera = h.ideal_camera_model(1.0);
     let p = &sim.state().pose;
     let vehicle = Pose {
         position: p.position.into(),

@@ -67,6 +67,32 @@ impl StereoHead {
         (self.width as f64 / 2.0) / (self.hfov_deg.to_radians() / 2.0).tan()
     }
 
+    /// The pinhole model of an ideal (untoed) head's left camera, with its images resized by
+    /// `1 / scale`: what `sim calib` writes for it and the stereo service publishes with its
+    /// disparity (the left lens sits half a baseline to port of the head's mount).
+    pub fn ideal_camera_model(&self, scale: f64) -> messages::CameraModel {
+        let f = self.focal_px() / scale;
+        let (w, h) = (
+            (self.width as f64 / scale).floor(),
+            (self.height as f64 / scale).floor(),
+        );
+        let lens = self.mount.position
+            + self.mount.rotation() * Vector3::new(0.0, self.baseline / 2.0, 0.0);
+        messages::CameraModel {
+            fx: f,
+            fy: f,
+            cx: (w - 1.0) / 2.0,
+            cy: (h - 1.0) / 2.0,
+            baseline_m: self.baseline,
+            mount: messages::Pose {
+                position: lens.into(),
+                roll: self.mount.rpy[0],
+                pitch: self.mount.rpy[1],
+                yaw: self.mount.rpy[2],
+            },
+        }
+    }
+
     /// Bytes of one image of this head.
     pub fn image_len(&self) -> usize {
         self.width as usize * self.height as usize * self.encoding.channels()

@@ -5,7 +5,6 @@
 
 use anyhow::{Context, Result};
 use messages::{CameraModel, Pose};
-use nalgebra::Vector3;
 use sim::{Command, Encoding, Simulator, WaterRegion};
 use std::path::Path;
 use stereo::bm::BmParams;
@@ -60,21 +59,7 @@ impl SimStereo {
         });
         let pipeline = FramePipeline::new(&calib, &matcher, PlaneSearch::default())
             .context("stereo pipeline")?;
-        let rot = h.mount.rotation();
-        let left = h.mount.position + rot * Vector3::new(0.0, h.baseline / 2.0, 0.0);
-        let camera = CameraModel {
-            fx: calib.left.fx,
-            fy: calib.left.fy,
-            cx: calib.left.cx,
-            cy: calib.left.cy,
-            baseline_m: h.baseline,
-            mount: Pose {
-                position: left.into(),
-                roll: h.mount.rpy[0],
-                pitch: h.mount.rpy[1],
-                yaw: h.mount.rpy[2],
-            },
-        };
+        let camera = h.ideal_camera_model(scale as f64);
         let n = w * ht;
         Ok(Self {
             head: index,
