@@ -18,7 +18,7 @@ use messages::{
     topics, water_cue, CameraModel, GroundTruth, LocalMapHeader, MapCell, TruthImageHeader,
     WaterMaskHeader,
 };
-use perception::eval::{score_hazard_map, ScoreParams};
+use perception::eval::{score_hazard_map, HazardScore, MapPlacement, ScoreParams};
 use runtime::Ports;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -30,6 +30,52 @@ const WATER_EDGES: [f64; 6] = [5.0, 7.0, 10.0, 15.0, 20.0, 30.0];
 const CELL_SLACK_M: f64 = 0.5;
 /// Messages kept per stamp while their partners are missing.
 const PENDING: usize = 16;
+
+/// The tracker's detection threshold in the simulated sets (`launch/sets/tracker.toml`): the world
+/// map's hazard cells are scored at the value that makes contacts of them.
+const WORLD_HAZARD_THRESHOLD: u8 = 128;
+
+/// Cell precision and recall summed over maps.
+#[derive(Default)]
+struct CellTally {
+    maps: u64,
+    hazard: usize,
+    true_hazard: usize,
+    footprint: usize,
+    found: usize,
+}
+
+impl CellTally {
+    fn add(&mut self, s: &HazardScore) {
+        self.maps += 1;
+        self.hazard += s.hazard_cells;
+        self.true_hazard += s.true_hazard_cells;
+        self.footprint += s.footprint_cells;
+        self.found += s.footprint_cells_found;
+    }
+
+    fn precision(&self) -> Option<f64> {
+        (self.hazard > 0).then(|| round4(self.true_hazard as f64 / self.hazard as f64))
+    }
+
+    fn recall(&self) -> Option<f64> {
+        (self.footprint > 0).then(|| round4(self.found as f64 / self.footprint as f64))
+    }
+}
+
+/// Where a map of the vessel at `ins` (its INS position) lies, with the INS error against truth.
+fn placement(
+    grid: &messages::GridGeometry,
+    ins: &messages::Pose,
+    truth: &GroundTruth,
+) -> MapPlacement {
+    let own = truth.own.pose.position;
+    MapPlacement {
+        grid: *grid,
+        vessel: [ins.position[0], ins.position[1]],
+        placement_error: [ins.position[0] - own[0], ins.position[1] - own[1]],
+    }
+}
 
 /// Per-object hazard-map figures.
 #[derive(Default, Clone, Copy)]
@@ -64,10 +110,12 @@ pub struct PerceptionEval {
     truth: runtime::Subscriber<GroundTruth, ()>,
     disparity: runtime::Subscriber<[f32], messages::DisparityHeader>,
     local_maps: runtime::Subscriber<[MapCell], LocalMapHeader>,
+    world_maps: runtime::Subscriber<[MapCell], messages::WorldMapHeader>,
     pending_masks: BTreeMap<u64, (WaterMaskHeader, Vec<u8>)>,
     pending_images: BTreeMap<u64, (TruthImageHeader, Vec<f32>)>,
     pending_truth: BTreeMap<u64, Box<GroundTruth>>,
     pending_maps: BTreeMap<u64, (LocalMapHeader, Vec<MapCell>)>,
+    pending_world: BTreeMap<u64, (messages::WorldMapHeader, Vec<MapCell>)>,
     cameras: BTreeMap<u64, CameraModel>,
     // Water.
     water_frames: u64,
@@ -87,9 +135,9 @@ pub struct PerceptionEval {
     map_water_cells_on_body_registered: u64,
     elevation_errors_m: Vec<f64>,
     // Hazard map.
-    hazard_maps: u64,
     objects: BTreeMap<u32, ObjectTally>,
-    cells: [usize; 4],
+    local_cells: CellTally,
+    world_cells: CellTally,
     // Scratch.
     labels: Vec<u8>,
     body_of: Vec<u16>,
@@ -112,10 +160,12 @@ impl PerceptionEval {
             truth: topics::GROUND_TRUTH.subscriber(node)?,
             disparity: topics::DISPARITY.subscriber(node)?,
             local_maps: topics::LOCAL_MAP.subscriber(node)?,
+            world_maps: topics::WORLD_MAP.subscriber(node)?,
             pending_masks: BTreeMap::new(),
             pending_images: BTreeMap::new(),
             pending_truth: BTreeMap::new(),
             pending_maps: BTreeMap::new(),
+            pending_world: BTreeMap::new(),
             cameras: BTreeMap::new(),
             water_frames: 0,
             unscored_masks: 0,
@@ -132,9 +182,9 @@ impl PerceptionEval {
             map_water_cells_on_body: 0,
             map_water_cells_on_body_registered: 0,
             elevation_errors_m: Vec::new(),
-            hazard_maps: 0,
             objects: BTreeMap::new(),
-            cells: [0; 4],
+            local_cells: CellTally::default(),
+            world_cells: CellTally::default(),
             labels: Vec::new(),
             body_of: Vec::new(),
             body_ranges: Vec::new(),
@@ -192,6 +242,11 @@ impl PerceptionEval {
             let truth = self.pending_truth[&stamp].clone();
             self.score_water(&mh, &mask, &th, &image, &camera, &truth);
         }
+        while let Some(s) = self.world_maps.receive()? {
+            let h = *s.user_header();
+            self.pending_world
+                .insert(h.hdr.stamp_ns, (h, s.payload().to_vec()));
+        }
         let ready: Vec<u64> = self
             .pending_maps
             .keys()
@@ -203,10 +258,32 @@ impl PerceptionEval {
             let truth = self.pending_truth[&stamp].clone();
             self.score_map(&h, &cells, &truth)?;
         }
+        let ready: Vec<u64> = self
+            .pending_world
+            .keys()
+            .copied()
+            .filter(|s| self.pending_truth.contains_key(s))
+            .collect();
+        for stamp in ready {
+            let (h, cells) = self.pending_world.remove(&stamp).unwrap();
+            let truth = &self.pending_truth[&stamp];
+            let params = ScoreParams {
+                hazard_threshold: WORLD_HAZARD_THRESHOLD,
+                ..ScoreParams::default()
+            };
+            let s = score_hazard_map(
+                &placement(&h.grid, &h.vessel, truth),
+                &cells,
+                truth,
+                &params,
+            )?;
+            self.world_cells.add(&s);
+        }
         trim(&mut self.pending_masks);
         trim(&mut self.pending_images);
         trim(&mut self.pending_truth);
         trim(&mut self.pending_maps);
+        trim(&mut self.pending_world);
         trim(&mut self.cameras);
         Ok(())
     }
@@ -355,8 +432,12 @@ impl PerceptionEval {
                     .push((c.elevation_cm as f64 / 100.0 - ins[2]) - (b.elevation_m - own[2]));
             }
         }
-        self.hazard_maps += 1;
-        let s = score_hazard_map(h, cells, truth, &ScoreParams::default())?;
+        let s = score_hazard_map(
+            &placement(g, &h.vessel, truth),
+            cells,
+            truth,
+            &ScoreParams::default(),
+        )?;
         for o in &s.objects {
             let t = self.objects.entry(o.id).or_insert(ObjectTally {
                 class: o.class,
@@ -369,10 +450,7 @@ impl PerceptionEval {
                 t.nearest_m = t.nearest_m.min(o.range_m);
             }
         }
-        self.cells[0] += s.hazard_cells;
-        self.cells[1] += s.true_hazard_cells;
-        self.cells[2] += s.footprint_cells;
-        self.cells[3] += s.footprint_cells_found;
+        self.local_cells.add(&s);
         Ok(())
     }
 
@@ -443,13 +521,21 @@ impl PerceptionEval {
         // Without a scored object in view (the trail scenarios) precision and recall mean nothing.
         let hazard = (!objects.is_empty()).then(|| {
             json!({
-                "maps": self.hazard_maps,
+                "maps": self.local_cells.maps,
                 "objects": objects,
                 "objects_detected_every_frame": self.objects.values()
                     .filter(|t| t.observed > 0 && t.detected == t.observed).count(),
-                "cell_precision": rate(self.cells[1] as u64, self.cells[0] as u64),
-                "cell_recall": rate(self.cells[3] as u64, self.cells[2] as u64),
-                "hazard_cells": self.cells[0],
+                "cell_precision": self.local_cells.precision(),
+                "cell_recall": self.local_cells.recall(),
+                "hazard_cells": self.local_cells.hazard,
+                "world_map": (self.world_cells.maps > 0).then(|| json!({
+                    "maps": self.world_cells.maps,
+                    "hazard_threshold": WORLD_HAZARD_THRESHOLD,
+                    "cell_precision": self.world_cells.precision(),
+                    "cell_recall": self.world_cells.recall(),
+                    "hazard_cells_per_map":
+                        round4(self.world_cells.hazard as f64 / self.world_cells.maps as f64),
+                })),
             })
         });
         json!({"water": water, "hazard": hazard})
@@ -508,6 +594,17 @@ pub fn print(report: &serde_json::Value) {
             h["objects_detected_every_frame"],
             objects.len()
         );
+        let wm = &h["world_map"];
+        if wm.is_object() {
+            println!(
+                "world map: {} maps; cells >= {}: precision {} %, recall {} %, {} a map",
+                wm["maps"],
+                wm["hazard_threshold"],
+                f(&wm["cell_precision"], 100.0),
+                f(&wm["cell_recall"], 100.0),
+                f(&wm["hazard_cells_per_map"], 1.0)
+            );
+        }
         for o in &objects {
             println!(
                 "  {} {}: detected {}/{} frames, nearest {} m",

@@ -15,7 +15,9 @@ pub struct Config {
     pub size_m: f64,
     /// Cell edge (m).
     pub resolution_m: f64,
-    /// Number of most recent costs averaged per cell (the paper's N = 3).
+    /// Number of most recent observations averaged per cell, cost and hazard alike (the paper's
+    /// N = 3). A cell observed fewer times counts the missing observations as clear water, so a
+    /// single-frame stereo mismatch never reaches full hazard: it takes N frames of evidence.
     pub cost_history: usize,
     /// Local maps in which a cell must have been water before it is output as confirmed water.
     pub water_confirm: u8,
@@ -79,6 +81,8 @@ struct Cell {
     /// Hazard probability 0..=1, decayed to the newest stamp.
     hazard: f32,
     costs: [u8; MAX_COST_HISTORY],
+    /// The local maps' hazards of the same observations as `costs`.
+    hazards: [u8; MAX_COST_HISTORY],
     cost_len: u8,
     cost_head: u8,
     /// Local maps that observed the cell (saturating).
@@ -92,6 +96,7 @@ impl Default for Cell {
         Self {
             hazard: 0.0,
             costs: [0; MAX_COST_HISTORY],
+            hazards: [0; MAX_COST_HISTORY],
             cost_len: 0,
             cost_head: 0,
             seen: 0,
@@ -453,18 +458,19 @@ impl WorldMapper {
                 }
                 let i = row as usize * self.w + col as usize;
                 let c = &mut self.cells[i];
-                // Hazard rises at once (detection latency matters) and falls gradually, so one
-                // missed frame does not erase an obstacle.
-                let pl = l.hazard as f32 / 255.0;
+                if l.cost != MapCell::UNKNOWN_COST {
+                    c.costs[c.cost_head as usize] = l.cost;
+                    c.hazards[c.cost_head as usize] = l.hazard;
+                    c.cost_head = (c.cost_head + 1) % hist;
+                    c.cost_len = (c.cost_len + 1).min(hist);
+                }
+                // The confirmed hazard (mean of the last N observations) rises at once and falls
+                // gradually, so one missed frame does not erase an obstacle.
+                let pl = history_mean(&c.hazards, c.cost_len, hist) / 255.0;
                 if pl >= c.hazard {
                     c.hazard = pl;
                 } else if measured {
                     c.hazard += gain * (pl - c.hazard);
-                }
-                if l.cost != MapCell::UNKNOWN_COST {
-                    c.costs[c.cost_head as usize] = l.cost;
-                    c.cost_head = (c.cost_head + 1) % hist;
-                    c.cost_len = (c.cost_len + 1).min(hist);
                 }
                 if l.observed > 0 {
                     c.max_height_cm = l.max_height_cm;
@@ -630,13 +636,13 @@ impl WorldMapper {
     pub fn write(&self, out: &mut [MapCell]) {
         assert_eq!(out.len(), self.w * self.h, "output slice size");
         let confirm = self.cfg.water_confirm;
+        let history = self.cfg.cost_history as u8;
         for ((o, c), wc) in out.iter_mut().zip(&self.cells).zip(&self.water) {
             let cost = if c.cost_len == 0 {
                 MapCell::UNKNOWN_COST
             } else {
-                let n = c.cost_len as usize;
-                let sum: u32 = c.costs[..n].iter().map(|&v| v as u32).sum();
-                ((sum + n as u32 / 2) / n as u32).min(MapCell::LETHAL_COST as u32) as u8
+                (history_mean(&c.costs, c.cost_len, history).round() as u32)
+                    .min(MapCell::LETHAL_COST as u32) as u8
             };
             let water = if wc.hits >= confirm {
                 2
@@ -683,6 +689,12 @@ fn merge(dst: &mut Water, src: Water) {
 
 /// Shifts a row-major `w x h` grid so that the cell at (dx, dy) becomes (0, 0); vacated cells are
 /// reset. In place (`copy_within`), no allocation.
+/// Mean of a cell's last `history` observations, of which it has `len` (the rest count as 0).
+fn history_mean(values: &[u8; MAX_COST_HISTORY], len: u8, history: u8) -> f32 {
+    let sum: u32 = values[..len as usize].iter().map(|&v| v as u32).sum();
+    sum as f32 / history.max(1) as f32
+}
+
 fn shift<T: Copy + Default>(buf: &mut [T], w: usize, h: usize, dx: i64, dy: i64) {
     if dx.unsigned_abs() as usize >= w || dy.unsigned_abs() as usize >= h {
         buf.fill(T::default());

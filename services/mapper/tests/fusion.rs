@@ -204,7 +204,7 @@ fn a_moving_boat_leaves_no_hazard_trail_after_the_decay_time() {
 }
 
 #[test]
-fn costs_average_the_last_three_and_water_needs_two_sightings() {
+fn costs_and_hazards_average_the_last_three_observations_and_water_needs_two_sightings() {
     let mut m = WorldMapper::new(Config::default()).unwrap();
     let mut feed = |k: u64, cost: u8, water: u8| {
         let hdr = local_header(1_000_000_000 + k * 100_000_000, [0.0, 0.0], 40);
@@ -212,6 +212,7 @@ fn costs_average_the_last_three_and_water_needs_two_sightings() {
         let (c, r) = hdr.grid.cell_of(3.2, 4.1).unwrap();
         cells[(r * hdr.grid.width + c) as usize] = MapCell {
             cost,
+            hazard: cost,
             water,
             observed: if water > 0 { 0 } else { 3 },
             ..Default::default()
@@ -220,8 +221,10 @@ fn costs_average_the_last_three_and_water_needs_two_sightings() {
         let (h, out) = world(&m);
         *cell_at(&h.grid, &out, 3.2, 4.1)
     };
-    assert_eq!(feed(0, 30, 0).cost, 30);
-    assert_eq!(feed(1, 60, 0).cost, 45);
+    // Observations the cell has not had yet count as clear water: one frame is a third.
+    let first = feed(0, 30, 0);
+    assert_eq!((first.cost, first.hazard), (10, 10));
+    assert_eq!(feed(1, 60, 0).cost, 30);
     assert_eq!(feed(2, 90, 0).cost, 60);
     assert_eq!(feed(3, 120, 0).cost, 90);
     assert_eq!(feed(4, 120, 0).cost, 110);
@@ -247,7 +250,11 @@ fn the_map_scrolls_with_the_vessel_and_drops_what_falls_off() {
         cost: 254,
         ..Default::default()
     };
-    m.fuse(&hdr, &cells).unwrap();
+    // Three observations confirm the hazard at full strength.
+    for k in 0..3 {
+        m.fuse(&local_header(1_000_000_000 + k, [0.0, 0.0], 40), &cells)
+            .unwrap();
+    }
     let empty = unknown(hdr.grid.cell_count());
     for (k, x) in [13.3, 27.9, 41.2].into_iter().enumerate() {
         let h = local_header(2_000_000_000 + k as u64, [x, -3.0], 40);
@@ -297,7 +304,11 @@ fn ins_position_at_the_frame_stamp_georegisters_the_local_map() {
     m.fuse(&hdr, &cells).unwrap();
     let (wh, out) = world(&m);
     assert_eq!(wh.vessel.position, [2.0, 0.0, 0.0]);
-    assert_eq!(cell_at(&wh.grid, &out, 8.2, 1.2).hazard, 255);
+    assert_eq!(
+        cell_at(&wh.grid, &out, 8.2, 1.2).hazard,
+        85,
+        "one observation of three"
+    );
     assert_eq!(out.iter().filter(|c| c.hazard > 0).count(), 1);
     let mut bad = InsState::default();
     bad.pose.yaw = f64::NAN;

@@ -8,7 +8,7 @@
 //! cells of scored objects with a hazard cell within the tolerance over all observed footprint cells.
 //! Ground truth has no terrain mask, so hazard cells on a shore count against precision.
 
-use messages::{truth_class, GroundTruth, LocalMapHeader, MapCell, TruthObject};
+use messages::{truth_class, GridGeometry, GroundTruth, LocalMapHeader, MapCell, TruthObject};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScoreParams {
@@ -105,30 +105,57 @@ fn in_footprint(o: &TruthObject, p: [f64; 2], grow: f64) -> bool {
         && across.abs() <= o.extent[1] as f64 / 2.0 + grow
 }
 
-/// Scores one local map; see the module docs.
+/// Where a map lies: its grid, the vessel position it was made at (ENU, as the map placed it) and
+/// the position error of that placement (map position minus true position). Truth is moved by the
+/// error before scoring, so a map placed with a noisy INS is scored on what its producer got right.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapPlacement {
+    pub grid: GridGeometry,
+    pub vessel: [f64; 2],
+    pub placement_error: [f64; 2],
+}
+
+impl MapPlacement {
+    /// A local map placed without error (training, unit tests).
+    pub fn exact(header: &LocalMapHeader) -> Self {
+        Self {
+            grid: header.grid,
+            vessel: [header.vessel.position[0], header.vessel.position[1]],
+            placement_error: [0.0; 2],
+        }
+    }
+}
+
+/// Scores one map (local or world); see the module docs.
 pub fn score_hazard_map(
-    header: &LocalMapHeader,
+    placement: &MapPlacement,
     cells: &[MapCell],
     truth: &GroundTruth,
     params: &ScoreParams,
 ) -> Result<HazardScore, EvalError> {
-    let g = &header.grid;
+    let g = &placement.grid;
     if cells.len() != g.cell_count() {
         return Err(EvalError::Size {
             got: cells.len(),
             expected: g.cell_count(),
         });
     }
-    let vessel = [header.vessel.position[0], header.vessel.position[1]];
+    let vessel = placement.vessel;
     let dist = |p: [f64; 2]| (p[0] - vessel[0]).hypot(p[1] - vessel[1]);
-    let standing: Vec<&TruthObject> = truth
+    let shift = placement.placement_error;
+    let standing: Vec<TruthObject> = truth
         .objects()
         .iter()
         .filter(|o| o.pose.position[2] <= params.max_base_height_m)
+        .map(|o| {
+            let mut o = *o;
+            o.pose.position[0] += shift[0];
+            o.pose.position[1] += shift[1];
+            o
+        })
         .collect();
     let scored: Vec<&TruthObject> = standing
         .iter()
-        .copied()
         .filter(|o| params.classes.contains(&o.class))
         .filter(|o| dist([o.pose.position[0], o.pose.position[1]]) <= params.max_range_m)
         .collect();
@@ -290,7 +317,13 @@ mod tests {
         set(&h, &mut cells, -15.0, 5.0, 20);
         // Marker: never observed. A false alarm in open water.
         set(&h, &mut cells, 0.0, 15.0, 255);
-        let s = score_hazard_map(&h, &cells, &truth, &ScoreParams::default()).unwrap();
+        let s = score_hazard_map(
+            &MapPlacement::exact(&h),
+            &cells,
+            &truth,
+            &ScoreParams::default(),
+        )
+        .unwrap();
         assert_eq!(s.objects.len(), 3, "the far buoy is out of range");
         let by_id = |id| s.objects.iter().find(|o| o.id == id).unwrap();
         assert!(by_id(1).observed && by_id(1).detected);
@@ -318,11 +351,23 @@ mod tests {
                 set(&h, &mut cells, 3.0 + dx, 4.0 + dy, 255);
             }
         }
-        let s = score_hazard_map(&h, &cells, &truth, &ScoreParams::default()).unwrap();
+        let s = score_hazard_map(
+            &MapPlacement::exact(&h),
+            &cells,
+            &truth,
+            &ScoreParams::default(),
+        )
+        .unwrap();
         assert_eq!(s.detections(), (1, 1));
         assert_eq!(s.precision(), 1.0);
         assert_eq!(s.recall(), 1.0);
         assert!(s.objects[0].error_m.unwrap() < 0.01);
-        assert!(score_hazard_map(&h, &cells[1..], &truth, &ScoreParams::default()).is_err());
+        assert!(score_hazard_map(
+            &MapPlacement::exact(&h),
+            &cells[1..],
+            &truth,
+            &ScoreParams::default()
+        )
+        .is_err());
     }
 }

@@ -15,6 +15,10 @@
 //! `cost.lethal_probability`, below it linear in the probability; unobserved cells 255.
 //!
 //! Buffers are sized at the first frame of a head (warm-up) and reused; a frame allocates nothing.
+//! Heights are taken relative to the frame's own water level: a residual plane fitted to the
+//! cells' mean heights corrects the tilt the stereo service's near-range water plane leaves at far
+//! range ([`LevelConfig`]).
+//!
 //! Projection runs in parallel over image rows into a per-pixel buffer; accumulation into cells is
 //! sequential in pixel order, so the output does not depend on thread timing.
 
@@ -116,6 +120,38 @@ impl Default for TemporalConfig {
     }
 }
 
+/// The residual water level: the water plane is fitted by the stereo service on near rows, and a
+/// fraction of a degree of tilt left in it lifts or sinks far water by a metre (0.5 deg at 60 m is
+/// 0.5 m), which the classifier then takes for objects. Each frame, a plane `h = a + b x + c y`
+/// (x, y: metres from the camera) is fitted to the cells' mean heights with shrinking trims (so
+/// objects and shore drop out) and subtracted from every point before the cells are scored.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct LevelConfig {
+    pub enabled: bool,
+    /// Fewer cells inside the last trim leave the frame uncorrected.
+    pub min_cells: u32,
+    /// A steeper residual plane is not water (shore, a bad frame) and leaves the frame uncorrected.
+    pub max_slope_deg: f64,
+    /// Largest offset at the camera (m) accepted, for the same reason.
+    pub max_offset_m: f64,
+}
+
+impl Default for LevelConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            min_cells: 200,
+            max_slope_deg: 3.0,
+            max_offset_m: 1.0,
+        }
+    }
+}
+
+/// Trims (m) of the residual level fit's passes: cells farther from the previous pass's plane are
+/// left out, so the first pass sees everything but tall objects and the last only water.
+const LEVEL_TRIMS_M: [f64; 4] = [2.0, 1.0, 0.5, 0.3];
+
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct CostConfig {
@@ -139,6 +175,7 @@ pub struct HazardConfig {
     pub projection: ProjectionConfig,
     pub spatial: SpatialConfig,
     pub temporal: TemporalConfig,
+    pub level: LevelConfig,
     pub cost: CostConfig,
 }
 
@@ -163,6 +200,10 @@ impl HazardConfig {
         }
         if !(self.temporal.tau_s >= 0.0 && self.temporal.max_gap_s > 0.0) {
             return Err("temporal needs tau_s >= 0 and max_gap_s > 0".into());
+        }
+        let lv = &self.level;
+        if !(lv.max_slope_deg >= 0.0 && lv.max_slope_deg < 45.0 && lv.max_offset_m >= 0.0) {
+            return Err("level needs 0 <= max_slope_deg < 45 and max_offset_m >= 0".into());
         }
         let l = self.cost.lethal_probability;
         if !(l > 0.0 && l <= 1.0) {
@@ -212,6 +253,25 @@ pub struct FrameSummary {
     pub hazard_cells: usize,
     /// Cells whose elevated points were dropped as isolated.
     pub isolated_cells: usize,
+    /// The residual water level subtracted from the heights, if one was fitted.
+    pub level: Option<WaterLevel>,
+}
+
+/// A residual water level `h = offset + slope[0] x + slope[1] y` (m; x east and y north of the
+/// camera, in metres).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WaterLevel {
+    pub offset_m: f64,
+    pub slope: [f64; 2],
+    /// Cells inside the last trim.
+    pub cells: u32,
+}
+
+impl WaterLevel {
+    /// Tilt of the level plane (deg).
+    pub fn tilt_deg(&self) -> f64 {
+        self.slope[0].hypot(self.slope[1]).atan().to_degrees()
+    }
 }
 
 /// A sampled pixel's cell (`u32::MAX` = none), height above the water and optical depth.
@@ -374,6 +434,11 @@ impl HazardMapper {
         let head_index = self.head_memory(frame.header)?;
         self.project(frame, &xf, &grid);
         self.accumulate();
+        let level = self.level(&xf, &grid);
+        if let Some(l) = &level {
+            self.subtract_level(l, &xf, &grid);
+            self.accumulate();
+        }
         let isolated_cells = self.score(frame.header, &xf, &grid, head_index, corner);
         self.remember(frame.header.hdr.stamp_ns, head_index, corner);
 
@@ -412,6 +477,7 @@ impl HazardMapper {
             observed_cells: self.scored.len(),
             hazard_cells,
             isolated_cells,
+            level,
         })
     }
 
@@ -503,6 +569,70 @@ impl HazardMapper {
             });
     }
 
+    /// Grid-local coordinates (m from the south-west corner) of the camera and of cell centres.
+    fn camera_in_grid(xf: &CameraToWorld, grid: &GridGeometry) -> [f64; 2] {
+        [
+            xf.origin[0] as f64 - (grid.center[0] - grid.width as f64 * grid.resolution_m / 2.0),
+            xf.origin[1] as f64 - (grid.center[1] - grid.height as f64 * grid.resolution_m / 2.0),
+        ]
+    }
+
+    /// Cell centre relative to the camera (m).
+    fn from_camera(cell: u32, cam: [f64; 2], grid: &GridGeometry) -> [f64; 2] {
+        let (col, row) = (cell % grid.width, cell / grid.width);
+        [
+            (col as f64 + 0.5) * grid.resolution_m - cam[0],
+            (row as f64 + 0.5) * grid.resolution_m - cam[1],
+        ]
+    }
+
+    /// Fits the residual water level to the touched cells' mean heights (see [`LevelConfig`]).
+    fn level(&self, xf: &CameraToWorld, grid: &GridGeometry) -> Option<WaterLevel> {
+        let cfg = &self.config.level;
+        if !cfg.enabled {
+            return None;
+        }
+        let cam = Self::camera_in_grid(xf, grid);
+        let mut plane = nalgebra::Vector3::<f64>::zeros();
+        let mut cells = 0;
+        for trim in LEVEL_TRIMS_M {
+            let mut ata = nalgebra::Matrix3::<f64>::zeros();
+            let mut atb = nalgebra::Vector3::<f64>::zeros();
+            cells = 0;
+            for &cell in &self.touched {
+                let s = &self.stats[cell as usize];
+                let [x, y] = Self::from_camera(cell, cam, grid);
+                let a = nalgebra::Vector3::new(1.0, x, y);
+                let m = (s.sum_h / s.count as f32) as f64;
+                if (m - a.dot(&plane)).abs() > trim {
+                    continue;
+                }
+                ata += a * a.transpose();
+                atb += a * m;
+                cells += 1;
+            }
+            if cells < cfg.min_cells {
+                return None;
+            }
+            plane = ata.lu().solve(&atb)?;
+        }
+        let level = WaterLevel {
+            offset_m: plane[0],
+            slope: [plane[1], plane[2]],
+            cells,
+        };
+        (level.tilt_deg() <= cfg.max_slope_deg && level.offset_m.abs() <= cfg.max_offset_m)
+            .then_some(level)
+    }
+
+    fn subtract_level(&mut self, level: &WaterLevel, xf: &CameraToWorld, grid: &GridGeometry) {
+        let cam = Self::camera_in_grid(xf, grid);
+        for p in self.points.iter_mut().filter(|p| p.cell != NO_CELL) {
+            let [x, y] = Self::from_camera(p.cell, cam, grid);
+            p.height -= (level.offset_m + level.slope[0] * x + level.slope[1] * y) as f32;
+        }
+    }
+
     fn accumulate(&mut self) {
         for &c in &self.touched {
             self.stats[c as usize] = CellStats::default();
@@ -547,10 +677,7 @@ impl HazardMapper {
         let tau = self.config.temporal.tau_s;
         let stamp = h.hdr.stamp_ns;
         let memory = &self.heads[head].cells;
-        let cam = [
-            xf.origin[0] as f64 - (grid.center[0] - gw as f64 * grid.resolution_m / 2.0),
-            xf.origin[1] as f64 - (grid.center[1] - gh as f64 * grid.resolution_m / 2.0),
-        ];
+        let cam = Self::camera_in_grid(xf, grid);
         self.scored.clear();
         let mut isolated_cells = 0;
         for &cell in &self.touched {

@@ -10,7 +10,7 @@
 
 use crate::hazard::{
     CostConfig, Frame, FrameError, FrameSummary, GridConfig, HazardConfig, HazardMapper,
-    ProjectionConfig, SpatialConfig, TemporalConfig,
+    LevelConfig, ProjectionConfig, SpatialConfig, TemporalConfig,
 };
 use crate::model::HazardModel;
 use anyhow::Context;
@@ -48,6 +48,8 @@ pub struct ServiceConfig {
     #[serde(default)]
     pub temporal: TemporalConfig,
     #[serde(default)]
+    pub level: LevelConfig,
+    #[serde(default)]
     pub cost: CostConfig,
     /// Water detection on colour heads; off unless `[water] heads` names some.
     #[serde(default)]
@@ -73,6 +75,7 @@ impl ServiceConfig {
             projection: self.projection.clone(),
             spatial: self.spatial.clone(),
             temporal: self.temporal.clone(),
+            level: self.level.clone(),
             cost: self.cost.clone(),
         }
     }

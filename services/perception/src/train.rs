@@ -9,7 +9,7 @@
 //! vegetation pixels. Frames are taken in short sequences so the temporal memory is exercised as
 //! in the service. Everything is seeded by the scenarios: the same command writes the same model.
 
-use crate::eval::{score_hazard_map, ScoreParams};
+use crate::eval::{score_hazard_map, MapPlacement, ScoreParams};
 use crate::hazard::{Frame, GridConfig, HazardConfig, HazardMapper, ProjectionConfig};
 use crate::model::{Features, HazardModel, ModelMetrics, N_FEATURES};
 use anyhow::{bail, Context};
@@ -397,7 +397,12 @@ fn map_frames(
                 vessel: f.vessel,
                 ..Default::default()
             };
-            let s = score_hazard_map(&header, &out, &f.truth, &ScoreParams::default())?;
+            let s = score_hazard_map(
+                &MapPlacement::exact(&header),
+                &out,
+                &f.truth,
+                &ScoreParams::default(),
+            )?;
             let (d, o) = s.detections();
             t.detected += d;
             t.observed += o;

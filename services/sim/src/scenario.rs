@@ -135,7 +135,10 @@ impl Default for EnvironmentSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct InsSpec {
+    /// Time-correlated position error (m) and its correlation time (s; 0 = white).
     pub position_sigma: f64,
+    pub position_correlation_s: f64,
+    pub position_white_sigma: f64,
     pub velocity_sigma: f64,
     pub attitude_sigma_deg: f64,
     pub rate_sigma_deg: f64,
@@ -150,6 +153,8 @@ impl Default for InsSpec {
         let n = InsNoise::default();
         InsSpec {
             position_sigma: n.position_sigma,
+            position_correlation_s: n.position_correlation_s,
+            position_white_sigma: n.position_white_sigma,
             velocity_sigma: n.velocity_sigma,
             attitude_sigma_deg: n.attitude_sigma.to_degrees(),
             rate_sigma_deg: n.rate_sigma.to_degrees(),
@@ -567,6 +572,8 @@ impl Builder<'_> {
         let i = &self.s.ins;
         for (name, v) in [
             ("position_sigma", i.position_sigma),
+            ("position_correlation_s", i.position_correlation_s),
+            ("position_white_sigma", i.position_white_sigma),
             ("velocity_sigma", i.velocity_sigma),
             ("attitude_sigma_deg", i.attitude_sigma_deg),
             ("rate_sigma_deg", i.rate_sigma_deg),
@@ -580,6 +587,8 @@ impl Builder<'_> {
         let rad = |a: [f64; 3]| a.map(f64::to_radians);
         Ok(InsNoise {
             position_sigma: i.position_sigma,
+            position_correlation_s: i.position_correlation_s,
+            position_white_sigma: i.position_white_sigma,
             velocity_sigma: i.velocity_sigma,
             attitude_sigma: i.attitude_sigma_deg.to_radians(),
             rate_sigma: i.rate_sigma_deg.to_radians(),

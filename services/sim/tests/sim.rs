@@ -239,7 +239,7 @@ fn current_drifts_a_stopped_boat() {
 fn ins_noise_matches_the_configured_sigmas_and_biases() {
     let text = UNIT.replace(
         "[vessel]",
-        "[ins]\nposition_sigma = 2.0\nattitude_sigma_deg = 0.5\nposition_bias = [1.0, 0.0, 0.0]\n\n[vessel]",
+        "[ins]\nposition_sigma = 2.0\nposition_correlation_s = 0.0\nposition_white_sigma = 0.0\nattitude_sigma_deg = 0.5\nposition_bias = [1.0, 0.0, 0.0]\n\n[vessel]",
     );
     let mut sim = Simulator::new(Scenario::parse(&text, "ins").unwrap().build().unwrap());
     let truth = *sim.state();

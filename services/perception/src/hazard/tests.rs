@@ -302,3 +302,67 @@ fn same_input_same_map() {
     let b = map(&mut HazardMapper::new(config(), model()).unwrap(), &h, &d).0;
     assert!(a == b);
 }
+
+#[test]
+fn a_water_plane_tilted_by_a_degree_is_levelled_and_the_buoy_still_stands_out() {
+    let mut s = Scene::hammerhead(640, 480);
+    s.objects.push(Cylinder {
+        east: 3.0,
+        north: 30.0,
+        radius: 0.4,
+        height: 1.6,
+    });
+    let mut d = Vec::new();
+    s.render(&mut d);
+    // The stereo service's plane says the camera is pitched one degree further down than it is:
+    // far water then rises (about a metre at 60 m).
+    let mut h = s.header(1_000_000_000, "hh_left");
+    let pitch = s.pitch_rad + 1f64.to_radians();
+    h.plane.normal = [0.0, -pitch.cos(), -pitch.sin()];
+    h.plane.pitch = pitch;
+    h.stabilized_pose.pitch = pitch;
+    let far_water = |out: &[MapCell], g: &GridGeometry| {
+        let mut worst = 0.0f64;
+        for row in 0..g.height {
+            for col in 0..g.width {
+                let c = out[(row * g.width + col) as usize];
+                let p = g.cell_center(col, row);
+                if c.observed > 0 && (p[0] - 3.0).hypot(p[1] - 30.0) > 1.5 {
+                    worst = worst.max((c.max_height_cm as f64 / 100.0).abs());
+                    // Only the buoy may be a hazard.
+                    worst = worst.max(c.hazard as f64 / 128.0);
+                }
+            }
+        }
+        worst
+    };
+    let unlevelled = HazardConfig {
+        level: LevelConfig {
+            enabled: false,
+            ..LevelConfig::default()
+        },
+        ..config()
+    };
+    let mut mapper = HazardMapper::new(unlevelled, model()).unwrap();
+    let (out, summary) = map(&mut mapper, &h, &d);
+    assert!(summary.level.is_none());
+    let tilted = far_water(&out, &summary.grid);
+    assert!(tilted > 0.5, "the tilt should lift far water: {tilted} m");
+
+    let mut mapper = HazardMapper::new(config(), model()).unwrap();
+    let (out, summary) = map(&mut mapper, &h, &d);
+    let level = summary.level.expect("a level fitted on open water");
+    assert!((level.tilt_deg() - 1.0).abs() < 0.2, "{level:?}");
+    // Below 0.2 m everywhere off the buoy (and hence hazard < 26 there).
+    let levelled = far_water(&out, &summary.grid);
+    assert!(
+        levelled < 0.2,
+        "water left {levelled} m off the level (or a hazard)"
+    );
+    let (height, hazard, dist) = best_near(&out, &summary.grid, 3.0, 30.0, 1.0);
+    assert!((height - 1.6).abs() < 0.2, "buoy height {height}");
+    assert!(
+        dist <= 0.75 && hazard >= 128,
+        "buoy: {dist} m, hazard {hazard}"
+    );
+}
