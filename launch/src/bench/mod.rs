@@ -42,7 +42,7 @@ impl Figure {
 }
 
 pub const NAMES: &[&str] = &[
-    "ipc", "recorder", "sim", "pipeline", "stereo", "hazard", "water", "mapper", "tracker",
+    "ipc", "recorder", "sim", "pipeline", "stereo", "hazard", "water", "mapper", "tracker", "arcs",
 ];
 
 /// A benchmark that lives in another program (`<program> <args...>`): `usv bench` runs it so every
@@ -67,6 +67,12 @@ const DELEGATED: &[Delegated] = &[
         name: "tracker",
         program: "tracker",
         args: &["bench", "--config", "@launch/sets/tracker.toml"],
+        quick: &["--quick"],
+    },
+    Delegated {
+        name: "arcs",
+        program: "sequencer",
+        args: &["bench"],
         quick: &["--quick"],
     },
     Delegated {

@@ -1,4 +1,5 @@
-//! `sequencer run --config FILE [--mission FILE]`: the sequencer service.
+//! `sequencer run --config FILE [--mission FILE]`: the sequencer service; `sequencer bench`: the
+//! arc and cycle timings (`usv bench arcs`).
 //!
 //! Subscribes the world map, the contact list and the INS; publishes one `ActuatorCommand` and one
 //! `SequencerStatus` per cycle. A cycle runs on every world map, also on every INS sample with
@@ -39,12 +40,24 @@ enum Command {
         #[arg(long)]
         mission: Option<PathBuf>,
     },
+    /// Arc evaluation and whole-cycle timings (`usv bench arcs`).
+    Bench {
+        /// Fewer iterations (a smoke run).
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = <Cli as clap::Parser>::parse();
     let result = match cli.command {
         Command::Run { config, mission } => run(config, mission),
+        Command::Bench { quick } => {
+            for (name, value, unit) in sequencer::bench::run(quick) {
+                println!("{name:<72} {value:>10.2} {unit}");
+            }
+            Ok(())
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
