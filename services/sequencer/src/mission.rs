@@ -383,6 +383,43 @@ struct Lock {
     id: u32,
     course: f64,
     last_seen_ns: u64,
+    /// Where the target was and how it moved when last seen, to take it up again under a new id.
+    position: [f64; 2],
+    velocity: [f64; 2],
+}
+
+/// A followed target whose track broke (the tracker lost it for a moment and gave it a new id) is
+/// taken up again by the confirmed, not-false-alarm contact nearest to where the lost one was
+/// predicted to be, if one is this close (m) ...
+const REACQUIRE_RADIUS_M: f64 = 12.0;
+/// ... plus this much per second since it was last seen (the prediction's error grows).
+const REACQUIRE_GROWTH_MPS: f64 = 2.0;
+
+impl Lock {
+    /// Where the target is predicted at `stamp_ns`.
+    fn predicted(&self, stamp_ns: u64) -> [f64; 2] {
+        let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
+        [
+            self.position[0] + self.velocity[0] * dt,
+            self.position[1] + self.velocity[1] * dt,
+        ]
+    }
+
+    /// The contact that continues this lock: the same id, or a new track where the target went.
+    fn find<'a>(&self, contacts: &'a [Contact], stamp_ns: u64) -> Option<&'a Contact> {
+        if let Some(c) = contacts.iter().find(|c| c.id == self.id) {
+            return Some(c);
+        }
+        let p = self.predicted(stamp_ns);
+        let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
+        let gate = REACQUIRE_RADIUS_M + REACQUIRE_GROWTH_MPS * dt;
+        let d = |c: &Contact| (c.position[0] - p[0]).hypot(c.position[1] - p[1]);
+        contacts
+            .iter()
+            .filter(|c| c.confirmed == 1 && c.class != contact_class::FALSE_ALARM)
+            .filter(|c| d(c) <= gate)
+            .min_by(|a, b| d(a).total_cmp(&d(b)).then(a.id.cmp(&b.id)))
+    }
 }
 
 /// Executes one mission. All time comes from the caller (stream time).
@@ -631,28 +668,42 @@ impl Runner {
                 if duration_s.is_some_and(|d| elapsed >= d) {
                     return None;
                 }
-                let lock_id = self.lock.map(|l| l.id).or(*contact_id);
-                let found = match (lock_id, class) {
-                    (Some(id), _) => world.contacts.iter().find(|c| c.id == id),
-                    (None, Some(class)) => {
+                let found = match (self.lock, contact_id, class) {
+                    (Some(lock), _, _) => lock.find(world.contacts, world.contacts_stamp_ns),
+                    (None, Some(id), _) => world.contacts.iter().find(|c| c.id == *id),
+                    (None, None, Some(class)) => {
                         let class = class_by_name(class)?;
                         nearest(world.contacts, class, own.position)
                     }
-                    (None, None) => None,
+                    (None, None, None) => None,
                 };
+                let offset = FollowOffset {
+                    astern_m: *astern_m,
+                    port_m: *port_m,
+                };
+                let max_speed_mps = max_speed_mps.unwrap_or(self.max_speed);
                 let Some(c) = found else {
-                    if let Some(lock) = self.lock {
-                        if now.saturating_sub(lock.last_seen_ns) as f64 / NS > *lost_timeout_s {
-                            self.state = RunState::Failed(format!(
-                                "step {} (follow): contact #{} lost for more than {lost_timeout_s} s",
-                                self.step + 1,
-                                lock.id
-                            ));
-                            return Some(Directive::Idle);
-                        }
+                    let Some(lock) = self.lock else {
+                        // Not seen yet: wait stopped; the step timeout bounds the wait.
+                        return Some(Directive::Hold);
+                    };
+                    if now.saturating_sub(lock.last_seen_ns) as f64 / NS > *lost_timeout_s {
+                        self.state = RunState::Failed(format!(
+                            "step {} (follow): contact #{} lost for more than {lost_timeout_s} s",
+                            self.step + 1,
+                            lock.id
+                        ));
+                        return Some(Directive::Idle);
                     }
-                    // Not (yet) seen: wait stopped; the step timeout bounds the wait.
-                    return Some(Directive::Hold);
+                    // Lost for a moment: keep after where it is predicted to be, so it is still
+                    // in view (and can be taken up again) when the tracker finds it again.
+                    return Some(Directive::Follow {
+                        position: lock.predicted(now),
+                        velocity: lock.velocity,
+                        course: lock.course,
+                        offset,
+                        max_speed_mps,
+                    });
                 };
                 let course = if c.velocity[0].hypot(c.velocity[1]) > 0.5 {
                     c.velocity[1].atan2(c.velocity[0])
@@ -663,6 +714,8 @@ impl Runner {
                     id: c.id,
                     course,
                     last_seen_ns: world.contacts_stamp_ns,
+                    position: c.position,
+                    velocity: c.velocity,
                 });
                 // The list is as old as its stamp: predict the target to now.
                 let age = now.saturating_sub(world.contacts_stamp_ns) as f64 / NS;
@@ -673,11 +726,8 @@ impl Runner {
                     ],
                     velocity: c.velocity,
                     course,
-                    offset: FollowOffset {
-                        astern_m: *astern_m,
-                        port_m: *port_m,
-                    },
-                    max_speed_mps: max_speed_mps.unwrap_or(self.max_speed),
+                    offset,
+                    max_speed_mps,
                 })
             }
             StepKind::StationKeep {
@@ -921,10 +971,32 @@ mod tests {
         assert_eq!(position, [102.0, 0.0], "nearest, predicted 1 s ahead");
         assert_eq!(course, 0.0);
         assert_eq!(r.step_name(), "follow #2");
+        // The track breaks: a new id 5 m from where #2 went takes it up, a boat elsewhere does not.
+        let contacts = [boat(1, 300.0), boat(7, 109.0)];
+        let w = World {
+            contacts: &contacts,
+            contacts_stamp_ns: 2 * S,
+            ..w
+        };
+        assert!(matches!(r.update(2 * S, &w), Directive::Follow { .. }));
+        assert_eq!(r.step_name(), "follow #7");
+        let contacts = [boat(1, 300.0), boat(8, 160.0)];
+        let w = World {
+            contacts: &contacts,
+            contacts_stamp_ns: 3 * S,
+            ..w
+        };
+        // #8 is 45 m from where #7 went: not the target; #7 is followed where it is predicted.
+        let d = r.update(3 * S, &w);
+        assert!(
+            matches!(d, Directive::Follow { position, .. } if position == [111.0, 0.0]),
+            "{d:?}"
+        );
+        assert_eq!(r.step_name(), "follow #7");
         // Target gone past the lost timeout: the step fails.
         let w = World { contacts: &[], ..w };
-        assert_eq!(r.update(3 * S, &w), Directive::Hold);
-        assert_eq!(r.update(10 * S, &w), Directive::Idle);
+        assert!(matches!(r.update(4 * S, &w), Directive::Follow { .. }));
+        assert_eq!(r.update(13 * S, &w), Directive::Idle);
         assert!(matches!(r.state(), RunState::Failed(why) if why.contains("lost")));
     }
 

@@ -1,5 +1,7 @@
-//! Contact detection: 8-connected components of cells whose hazard is at or above a threshold, with
-//! the shape features the classifier uses. Buffers are kept between maps (no allocation once they
+//! Contact detection: components of cells whose hazard is at or above a threshold (cells within
+//! `link_cells` of each other in both axes are linked; 1 is 8-connectivity), with the shape features
+//! the classifier uses. A boat far out gives sparse cells with gaps; linking across a gap keeps it
+//! one detection instead of several that each grow a track with a junk velocity. Buffers are kept between maps (no allocation once they
 //! have grown to the map size).
 
 use messages::{GridGeometry, MapCell};
@@ -22,6 +24,19 @@ pub struct Detection {
     pub cells: u32,
 }
 
+/// What [`Detector::detect`] looks for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectParams {
+    /// Cells with hazard >= this (0..=255) belong to components.
+    pub threshold: u8,
+    /// Smaller components are skipped (cells).
+    pub min_cells: u32,
+    /// At most this many components, in scan order.
+    pub max: usize,
+    /// Cells this close (in cells, both axes) are linked; 1 = 8-connected.
+    pub link_cells: u32,
+}
+
 #[derive(Default)]
 pub struct Detector {
     label: Vec<u32>,
@@ -34,18 +49,22 @@ impl Detector {
         Self::default()
     }
 
-    /// Appends the components of `cells` (row-major over `grid`) with hazard >= `threshold` to
-    /// `out` (cleared first), in scan order, at most `max` of them (largest kept last-come
-    /// first-dropped: scan order is deterministic). Components smaller than `min_cells` are skipped.
+    /// Appends the components of `cells` (row-major over `grid`) to `out` (cleared first), in
+    /// scan order (deterministic), at most `params.max` of them.
     pub fn detect(
         &mut self,
         grid: &GridGeometry,
         cells: &[MapCell],
-        threshold: u8,
-        min_cells: u32,
-        max: usize,
+        params: &DetectParams,
         out: &mut Vec<Detection>,
     ) {
+        let DetectParams {
+            threshold,
+            min_cells,
+            max,
+            link_cells,
+        } = *params;
+        let link = link_cells.max(1) as i64;
         out.clear();
         let (w, h) = (grid.width as usize, grid.height as usize);
         debug_assert_eq!(cells.len(), w * h);
@@ -89,8 +108,8 @@ impl Detector {
                 r0 = r0.min(y);
                 r1 = r1.max(y);
                 hmax = hmax.max(c.max_height_cm);
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
+                for dy in -link..=link {
+                    for dx in -link..=link {
                         let (nx, ny) = (x as i64 + dx, y as i64 + dy);
                         if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
                             continue;
@@ -161,7 +180,13 @@ mod tests {
         }
         let mut d = Detector::new();
         let mut out = Vec::new();
-        d.detect(&grid, &cells, 128, 1, 16, &mut out);
+        let params = |threshold, min_cells, max, link_cells| DetectParams {
+            threshold,
+            min_cells,
+            max,
+            link_cells,
+        };
+        d.detect(&grid, &cells, &params(128, 1, 16, 1), &mut out);
         assert_eq!(out.len(), 2);
         let bar = out[0];
         assert_eq!(bar.cells, 7);
@@ -176,9 +201,13 @@ mod tests {
         assert!((block.position[0] - 102.5).abs() < 1e-9);
         assert!((block.position[1] - 1.0).abs() < 1e-9);
         // Below the threshold nothing is found; `max` caps the list.
-        d.detect(&grid, &cells, 255, 5, 16, &mut out);
+        d.detect(&grid, &cells, &params(255, 5, 16, 1), &mut out);
         assert_eq!(out.len(), 1);
-        d.detect(&grid, &cells, 1, 1, 1, &mut out);
+        d.detect(&grid, &cells, &params(1, 1, 1, 1), &mut out);
         assert_eq!(out.len(), 1);
+        // Linked across the 5-cell gap between them, the bar and the block are one detection.
+        d.detect(&grid, &cells, &params(1, 1, 16, 6), &mut out);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].cells, 11);
     }
 }

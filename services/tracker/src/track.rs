@@ -4,7 +4,7 @@
 //! deletion after a coast limit.
 
 use crate::classify::Model;
-use crate::detect::{Detection, Detector};
+use crate::detect::{DetectParams, Detection, Detector};
 use messages::{
     contact_class, Contact, ContactList, Header, MapCell, WorldMapHeader, MAX_CONTACTS,
 };
@@ -19,6 +19,8 @@ pub struct TrackerConfig {
     pub hazard_threshold: u8,
     /// Smallest component kept (cells).
     pub min_cells: u32,
+    /// Hazard cells closer than this (m) belong to one component (0.5 m cells: 0.5 = 8-connected).
+    pub link_m: f64,
     /// Detections kept per map at most (scan order).
     pub max_detections: usize,
     /// White-acceleration noise of the constant-velocity model (m/s^2).
@@ -46,6 +48,7 @@ impl Default for TrackerConfig {
         Self {
             hazard_threshold: 128,
             min_cells: 1,
+            link_m: 0.5,
             max_detections: 256,
             accel_sigma: 0.5,
             range_sigma: [0.2, 0.01],
@@ -140,6 +143,9 @@ impl Tracker {
         if positive.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
             return bad("noise, gate and coast settings must be > 0");
         }
+        if !(cfg.link_m > 0.0 && cfg.link_m <= 10.0) {
+            return bad("link_m must be within (0, 10]");
+        }
         if model.validate().is_err() {
             return bad("contact model is invalid");
         }
@@ -199,14 +205,14 @@ impl Tracker {
         let dt = self.last_stamp.map_or(0.0, |p| (stamp - p) as f64 * 1e-9);
         self.last_stamp = Some(stamp);
 
-        self.detector.detect(
-            &g,
-            cells,
-            self.cfg.hazard_threshold,
-            self.cfg.min_cells,
-            self.cfg.max_detections,
-            &mut self.detections,
-        );
+        let params = DetectParams {
+            threshold: self.cfg.hazard_threshold,
+            min_cells: self.cfg.min_cells,
+            max: self.cfg.max_detections,
+            link_cells: (self.cfg.link_m / g.resolution_m).round().max(1.0) as u32,
+        };
+        self.detector
+            .detect(&g, cells, &params, &mut self.detections);
         self.classes.clear();
         for d in &self.detections {
             self.classes.push(self.model.classify(d));

@@ -200,7 +200,13 @@ pub fn label_detections(
     out: &mut Vec<(Detection, u8)>,
 ) {
     let mut dets = Vec::new();
-    detector.detect(grid, cells, threshold, 1, 4096, &mut dets);
+    let params = crate::detect::DetectParams {
+        threshold,
+        min_cells: 1,
+        max: 4096,
+        link_cells: 1,
+    };
+    detector.detect(grid, cells, &params, &mut dets);
     // Majority owner per detection: the owner of the cells nearest its centroid and extent box.
     for d in dets {
         let mut votes: Vec<(u32, u32)> = Vec::new();
