@@ -17,6 +17,23 @@ use std::time::Instant;
 
 /// Half beam of the own boat (m): clearance is measured hull to hull.
 const OWN_HALF_BEAM_M: f64 = 1.2;
+/// Height of the own vessel's highest point (the sensor bar, 3 m) with a margin (m): objects whose
+/// base is higher (bridge decks) are passed under.
+const OWN_AIR_DRAFT_M: f64 = 3.5;
+
+/// Distance (m) from `p` to an object's footprint (a box of its length and width along its
+/// heading); negative inside, down to minus the half width.
+fn footprint_distance(o: &messages::TruthObject, p: [f64; 2]) -> f64 {
+    let (dx, dy) = (p[0] - o.pose.position[0], p[1] - o.pose.position[1]);
+    let (s, c) = o.pose.yaw.sin_cos();
+    let along = (dx * c + dy * s).abs() - 0.5 * o.extent[0] as f64;
+    let across = (-dx * s + dy * c).abs() - 0.5 * o.extent[1] as f64;
+    if along <= 0.0 && across <= 0.0 {
+        along.max(across)
+    } else {
+        along.max(0.0).hypot(across.max(0.0))
+    }
+}
 /// A rudder swing smaller than this (rad) is noise, not a reversal.
 const REVERSAL_MIN_RAD: f64 = 0.03;
 /// Following error is scored once the boat had this long to reach its station (s).
@@ -176,7 +193,10 @@ impl Observation {
             let radius = 0.5 * o.extent[0].max(o.extent[1]) as f64;
             self.truth_objects
                 .insert(o.id, (o.class, [ox, oy], radius as f32));
-            let clearance = ((ox - x).hypot(oy - y) - radius - OWN_HALF_BEAM_M).max(-radius);
+            if o.pose.position[2] > OWN_AIR_DRAFT_M {
+                continue; // a bridge deck: passed under, not around
+            }
+            let clearance = footprint_distance(o, [x, y]) - OWN_HALF_BEAM_M;
             let entry = self.approaches.entry(o.id).or_insert(Approach {
                 id: o.id,
                 class: o.class,

@@ -181,7 +181,6 @@ fn replayed_recording_gives_the_committed_outputs() {
 }
 
 #[test]
-#[ignore = "long scenario run"]
 fn bridge_pylon_passage_closed_loop() {
     let _guard = serial();
     let r = closed_loop("bridge_pylons", "50", &[]);

@@ -391,7 +391,7 @@ struct Lock {
 /// A followed target whose track broke (the tracker lost it for a moment and gave it a new id) is
 /// taken up again by the confirmed, not-false-alarm contact nearest to where the lost one was
 /// predicted to be, if one is this close (m) ...
-const REACQUIRE_RADIUS_M: f64 = 12.0;
+const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows).
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
 
@@ -405,10 +405,13 @@ impl Lock {
         ]
     }
 
-    /// The contact that continues this lock: the same id, or a new track where the target went.
+    /// The contact that continues this lock: the same id (unless the tracker now calls it a false
+    /// alarm), or a new track where the target went.
     fn find<'a>(&self, contacts: &'a [Contact], stamp_ns: u64) -> Option<&'a Contact> {
         if let Some(c) = contacts.iter().find(|c| c.id == self.id) {
-            return Some(c);
+            if c.class != contact_class::FALSE_ALARM {
+                return Some(c);
+            }
         }
         let p = self.predicted(stamp_ns);
         let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
@@ -986,7 +989,8 @@ mod tests {
             contacts_stamp_ns: 3 * S,
             ..w
         };
-        // #8 is 45 m from where #7 went: not the target; #7 is followed where it is predicted.
+        // #8 is 45 m from where #7 went (more than 15 m + 2 m/s): not the target; #7 is followed
+        // where it is predicted.
         let d = r.update(3 * S, &w);
         assert!(
             matches!(d, Directive::Follow { position, .. } if position == [111.0, 0.0]),

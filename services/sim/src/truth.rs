@@ -9,7 +9,8 @@ pub struct ObjectTruth {
     pub id: u32,
     pub name: String,
     pub class: Class,
-    /// Object origin (waterline or ground level), ENU metres.
+    /// Object origin (waterline or ground level), ENU metres; `z` is the object's lowest point
+    /// (a bridge deck's underside, so what a boat passes under shows as such).
     pub position: [f64; 3],
     /// Heading, radians (ENU, 0 = east).
     pub yaw: f64,
@@ -49,7 +50,7 @@ impl WorldTruth {
                 id: i as u32,
                 name: o.name.clone(),
                 class: o.class,
-                position: [k.position[0], k.position[1], o.base_z as f64],
+                position: [k.position[0], k.position[1], (o.base_z + o.bottom_z) as f64],
                 yaw: k.yaw,
                 velocity: [k.velocity[0], k.velocity[1], 0.0],
                 extent: o.extent.map(f64::from),

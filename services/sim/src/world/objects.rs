@@ -227,6 +227,9 @@ pub struct Object {
     pub base_z: f32,
     /// Length (local x), width (local y), height (z) of the bounding box, metres.
     pub extent: [f32; 3],
+    /// Height of the object's lowest point above its origin (m): 0 for what stands on the water
+    /// or ground, the deck's underside for a bridge.
+    pub bottom_z: f32,
     /// Part of ground truth (scenario objects) or scenery (procedurally scattered vegetation).
     pub in_truth: bool,
 }
@@ -234,7 +237,7 @@ pub struct Object {
 /// Constructors: what each kind of object looks like. Sizes follow typical real ones.
 impl Object {
     fn new(name: String, class: Class, motion: Motion, parts: Vec<Part>) -> Self {
-        let extent = bounding_extent(&parts);
+        let (extent, bottom_z) = bounding_extent(&parts);
         Object {
             name,
             class,
@@ -242,6 +245,7 @@ impl Object {
             motion,
             base_z: 0.0,
             extent,
+            bottom_z,
             in_truth: true,
         }
     }
@@ -481,8 +485,9 @@ fn concrete(seed: u32) -> Material {
     Material::new([0.5, 0.48, 0.44], 1.0, 0.45, seed)
 }
 
-/// Local axis-aligned bounding box of the parts, as (length, width, height).
-fn bounding_extent(parts: &[Part]) -> [f32; 3] {
+/// Local axis-aligned bounding box of the parts, as (length, width, height), and the height of
+/// the lowest point above the origin (0 when anything reaches down to it).
+fn bounding_extent(parts: &[Part]) -> ([f32; 3], f32) {
     let (mut lo, mut hi) = (V3::repeat(f32::MAX), V3::repeat(f32::MIN));
     for p in parts {
         let (a, b) = shape_bounds(&p.shape);
@@ -491,7 +496,10 @@ fn bounding_extent(parts: &[Part]) -> [f32; 3] {
     }
     let hi_z = hi.z;
     // Height is reported above the origin (waterline/ground), not including submerged parts.
-    [hi.x - lo.x, hi.y - lo.y, hi_z - lo.z.max(0.0)]
+    (
+        [hi.x - lo.x, hi.y - lo.y, hi_z - lo.z.max(0.0)],
+        lo.z.max(0.0),
+    )
 }
 
 /// Local-frame bounds of a shape (boxes before yaw).
