@@ -295,6 +295,29 @@ mod tests {
         };
     }
 
+    fn score(h: &LocalMapHeader, cells: &[MapCell], truth: &GroundTruth) -> HazardScore {
+        score_hazard_map(&MapPlacement::exact(h), cells, truth, &ScoreParams::default()).unwrap()
+    }
+
+    #[test]
+    fn a_map_placed_with_an_ins_error_is_scored_against_truth_moved_by_it() {
+        let h = header();
+        let mut cells = vec![MapCell::default(); h.grid.cell_count()];
+        let mut truth = GroundTruth::default();
+        truth.objects[0] = object(1, truth_class::BUOY, 10.0, 10.0, 1.0);
+        truth.object_count = 1;
+        // The INS put the vessel 2 m east of where it was: the buoy lands 2 m east too.
+        set(&h, &mut cells, 12.0, 10.0, 255);
+        assert_eq!(score(&h, &cells, &truth).precision(), 0.0);
+        let placed = MapPlacement {
+            placement_error: [2.0, 0.0],
+            ..MapPlacement::exact(&h)
+        };
+        let s = score_hazard_map(&placed, &cells, &truth, &ScoreParams::default()).unwrap();
+        assert_eq!((s.precision(), s.detections()), (1.0, (1, 1)));
+        assert!(s.objects[0].error_m.unwrap() < 0.5, "within a cell");
+    }
+
     #[test]
     fn detects_misses_and_counts_false_alarms() {
         let h = header();
@@ -317,13 +340,7 @@ mod tests {
         set(&h, &mut cells, -15.0, 5.0, 20);
         // Marker: never observed. A false alarm in open water.
         set(&h, &mut cells, 0.0, 15.0, 255);
-        let s = score_hazard_map(
-            &MapPlacement::exact(&h),
-            &cells,
-            &truth,
-            &ScoreParams::default(),
-        )
-        .unwrap();
+        let s = score(&h, &cells, &truth);
         assert_eq!(s.objects.len(), 3, "the far buoy is out of range");
         let by_id = |id| s.objects.iter().find(|o| o.id == id).unwrap();
         assert!(by_id(1).observed && by_id(1).detected);
@@ -351,13 +368,7 @@ mod tests {
                 set(&h, &mut cells, 3.0 + dx, 4.0 + dy, 255);
             }
         }
-        let s = score_hazard_map(
-            &MapPlacement::exact(&h),
-            &cells,
-            &truth,
-            &ScoreParams::default(),
-        )
-        .unwrap();
+        let s = score(&h, &cells, &truth);
         assert_eq!(s.detections(), (1, 1));
         assert_eq!(s.precision(), 1.0);
         assert_eq!(s.recall(), 1.0);
