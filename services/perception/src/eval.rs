@@ -296,7 +296,13 @@ mod tests {
     }
 
     fn score(h: &LocalMapHeader, cells: &[MapCell], truth: &GroundTruth) -> HazardScore {
-        score_hazard_map(&MapPlacement::exact(h), cells, truth, &ScoreParams::default()).unwrap()
+        score_hazard_map(
+            &MapPlacement::exact(h),
+            cells,
+            truth,
+            &ScoreParams::default(),
+        )
+        .unwrap()
     }
 
     #[test]
