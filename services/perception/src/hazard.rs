@@ -569,7 +569,7 @@ impl HazardMapper {
             });
     }
 
-    /// Grid-local coordinates (m from the south-west corner) of the camera and of cell centres.
+    /// Grid-local coordinates of the camera (m from the grid's south-west corner).
     fn camera_in_grid(xf: &CameraToWorld, grid: &GridGeometry) -> [f64; 2] {
         [
             xf.origin[0] as f64 - (grid.center[0] - grid.width as f64 * grid.resolution_m / 2.0),
