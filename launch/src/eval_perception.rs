@@ -247,25 +247,11 @@ impl PerceptionEval {
             self.pending_world
                 .insert(h.hdr.stamp_ns, (h, s.payload().to_vec()));
         }
-        let ready: Vec<u64> = self
-            .pending_maps
-            .keys()
-            .copied()
-            .filter(|s| self.pending_truth.contains_key(s))
-            .collect();
-        for stamp in ready {
-            let (h, cells) = self.pending_maps.remove(&stamp).unwrap();
+        for (stamp, (h, cells)) in take_ready(&mut self.pending_maps, &self.pending_truth) {
             let truth = self.pending_truth[&stamp].clone();
             self.score_map(&h, &cells, &truth)?;
         }
-        let ready: Vec<u64> = self
-            .pending_world
-            .keys()
-            .copied()
-            .filter(|s| self.pending_truth.contains_key(s))
-            .collect();
-        for stamp in ready {
-            let (h, cells) = self.pending_world.remove(&stamp).unwrap();
+        for (stamp, (h, cells)) in take_ready(&mut self.pending_world, &self.pending_truth) {
             let truth = &self.pending_truth[&stamp];
             let params = ScoreParams {
                 hazard_threshold: WORLD_HAZARD_THRESHOLD,
@@ -637,6 +623,19 @@ fn label_components(
         pixels[l as usize] += 1;
     }
     (1..=n).map(|l| (l as u32, pixels[l])).collect()
+}
+
+/// Removes and returns the pending entries whose stamp has its truth, in stamp order.
+fn take_ready<V, T>(pending: &mut BTreeMap<u64, V>, truth: &BTreeMap<u64, T>) -> Vec<(u64, V)> {
+    let ready: Vec<u64> = pending
+        .keys()
+        .copied()
+        .filter(|s| truth.contains_key(s))
+        .collect();
+    ready
+        .into_iter()
+        .filter_map(|s| pending.remove(&s).map(|v| (s, v)))
+        .collect()
 }
 
 fn trim<V>(m: &mut BTreeMap<u64, V>) {

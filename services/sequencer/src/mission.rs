@@ -396,9 +396,14 @@ const REACQUIRE_RADIUS_M: f64 = 15.0;
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
 
 impl Lock {
+    /// Seconds since the target was last seen, at `stamp_ns`.
+    fn unseen_s(&self, stamp_ns: u64) -> f64 {
+        stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS
+    }
+
     /// Where the target is predicted at `stamp_ns`.
     fn predicted(&self, stamp_ns: u64) -> [f64; 2] {
-        let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
+        let dt = self.unseen_s(stamp_ns);
         [
             self.position[0] + self.velocity[0] * dt,
             self.position[1] + self.velocity[1] * dt,
@@ -414,8 +419,7 @@ impl Lock {
             }
         }
         let p = self.predicted(stamp_ns);
-        let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
-        let gate = REACQUIRE_RADIUS_M + REACQUIRE_GROWTH_MPS * dt;
+        let gate = REACQUIRE_RADIUS_M + REACQUIRE_GROWTH_MPS * self.unseen_s(stamp_ns);
         let d = |c: &Contact| (c.position[0] - p[0]).hypot(c.position[1] - p[1]);
         contacts
             .iter()
@@ -690,7 +694,7 @@ impl Runner {
                         // Not seen yet: wait stopped; the step timeout bounds the wait.
                         return Some(Directive::Hold);
                     };
-                    if now.saturating_sub(lock.last_seen_ns) as f64 / NS > *lost_timeout_s {
+                    if lock.unseen_s(now) > *lost_timeout_s {
                         self.state = RunState::Failed(format!(
                             "step {} (follow): contact #{} lost for more than {lost_timeout_s} s",
                             self.step + 1,
