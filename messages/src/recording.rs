@@ -37,6 +37,32 @@ pub fn bytes_of<T: ?Sized + iceoryx2::prelude::IceoryxSend>(value: &T) -> &[u8] 
     }
 }
 
+/// Reads a recorded user header or fixed-size payload back into its type (`None` if `bytes` is
+/// too short). Offline tools use it; the live path never copies.
+///
+/// # Safety
+/// `T` must be valid for every bit pattern of its size: contract types made of plain numbers and
+/// arrays (no `bool`, no enums), such as `InsState`, `GroundTruth` or `WorldMapHeader`.
+pub unsafe fn read_value<T: Copy>(bytes: &[u8]) -> Option<T> {
+    (bytes.len() >= size_of::<T>()).then(|| {
+        // SAFETY: the length is checked; validity of the bit pattern is the caller's promise.
+        unsafe { std::ptr::read_unaligned(bytes.as_ptr().cast::<T>()) }
+    })
+}
+
+/// Reads a recorded slice payload back into its elements (trailing bytes short of one element are
+/// ignored).
+///
+/// # Safety
+/// As for [`read_value`].
+pub unsafe fn read_slice<T: Copy>(bytes: &[u8]) -> Vec<T> {
+    bytes
+        .chunks_exact(size_of::<T>())
+        // SAFETY: each chunk is exactly one element long; validity is the caller's promise.
+        .map(|c| unsafe { std::ptr::read_unaligned(c.as_ptr().cast::<T>()) })
+        .collect()
+}
+
 /// The versioned type name a topic's recorded schema is named after: the user header's for slice
 /// topics (`usv.StereoFrame.v1`), the payload's for fixed-size topics (`usv.InsState.v1`).
 pub fn type_name<P, H>() -> &'static str
@@ -71,5 +97,37 @@ mod tests {
             type_name::<[u8], crate::StereoFrameHeader>(),
             "usv.StereoFrame.v1"
         );
+    }
+
+    #[test]
+    fn recorded_bytes_read_back_into_their_types() {
+        let cells = [
+            crate::MapCell {
+                hazard: 200,
+                max_height_cm: -3,
+                ..Default::default()
+            },
+            crate::MapCell {
+                water: 2,
+                elevation_cm: 41,
+                ..Default::default()
+            },
+        ];
+        let pose = crate::Pose {
+            position: [1.0, -2.0, 0.5],
+            yaw: 0.25,
+            ..Default::default()
+        };
+        // Offset by one byte: recorded payloads need not be aligned.
+        let mut bytes = vec![0u8];
+        bytes.extend_from_slice(bytes_of(&pose));
+        // SAFETY: Pose and MapCell are plain numbers.
+        let back: Option<crate::Pose> = unsafe { read_value(&bytes[1..]) };
+        assert_eq!(back, Some(pose));
+        assert_eq!(unsafe { read_value::<crate::Pose>(&bytes[2..]) }, None);
+        let mut bytes = vec![0u8];
+        bytes.extend_from_slice(bytes_of(&cells[..]));
+        bytes.push(9);
+        assert_eq!(unsafe { read_slice::<crate::MapCell>(&bytes[1..]) }, cells);
     }
 }

@@ -1,27 +1,199 @@
-//! Builds the contact classifier's training data from the simulator's ground truth and fits the
-//! model: `cargo run --release -p tracker --example train -- --out services/tracker/models/contact.json`
+//! Builds the contact classifier's training data from simulator ground truth and fits the model.
 //!
-//! Every maritime scenario in services/sim/scenarios is stepped for its duration; every 0.5 s of
-//! stream time the truth objects (class, pose, extent) and the shore around the vessel are
-//! rasterized with the stereo noise model of `tracker::train` into a 100 m map, its components are
-//! labelled by the source owning most of their cells, and frames are split 80/20 (by a hash of
-//! scenario and frame) into training and held-out sets. Prints per-class held-out accuracy.
-//! It is trained on rasterized truth, not on perception output.
+//! From recorded perception (the committed model):
+//!
+//! ```text
+//! usv eval services/sim/scenarios/{bridge_pylons,channel_markers,cluttered_river,follow_boat,open_water_crossing}.toml \
+//!     --closed-loop --head-scale 0.5 --camera-rate 5 --duration 60 --record --out out/train
+//! cargo run --release -p tracker --example train -- --recordings out/train --out services/tracker/models/contact.json
+//! ```
+//!
+//! Every world map in `<dir>/<scenario>/run.mcap` goes through the tracker's own detector (the
+//! `[tracking]` settings of launch/sets/tracker.toml), and each detection is labelled by the
+//! recorded ground truth under it (`tracker::train::label_by_truth`, with the map's INS error taken
+//! out), the scenario's terrain telling shore from open water.
+//!
+//! Without `--recordings`, every maritime scenario is stepped instead and its truth objects and
+//! shore are rasterized with the stereo noise model of `tracker::train` (no perception involved).
+//!
+//! Maps are split 80/20 (by a hash of scenario and map) into training and held-out sets; the
+//! per-class held-out accuracy is printed and kept in the model's provenance.
 
-use messages::{contact_class, GridGeometry, MapCell};
-use sim::world::Class;
+use anyhow::Context;
+use messages::{contact_class, truth_class, GridGeometry, GroundTruth, MapCell, WorldMapHeader};
+use sim::world::{Class, World};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use tracker::detect::{Detection, Detector};
-use tracker::train::{accuracy, fit, label_detections, rasterize, NoiseModel, Rng, TruthShape};
+use tracker::train::{
+    accuracy, fit, label_by_truth, label_detections, rasterize, NoiseModel, Rng, TruthShape,
+};
+use tracker::TrackerConfig;
+
+/// Land this far above the water is shore (m).
+const SHORE_HEIGHT_M: f64 = 0.3;
+
+#[derive(Default)]
+struct Examples {
+    train: Vec<(Detection, u8)>,
+    test: Vec<(Detection, u8)>,
+    scenarios: Vec<String>,
+}
+
+impl Examples {
+    /// The set a map goes to: about one in five is held out.
+    fn set(&mut self, seed: u64) -> &mut Vec<(Detection, u8)> {
+        if Rng::new(seed ^ 0xfeed).uniform() < 0.2 {
+            &mut self.test
+        } else {
+            &mut self.train
+        }
+    }
+}
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let out = args
-        .iter()
-        .position(|a| a == "--out")
-        .and_then(|i| args.get(i + 1))
-        .ok_or_else(|| anyhow::anyhow!("usage: train --out FILE"))?;
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios");
-    let mut paths: Vec<_> = std::fs::read_dir(&dir)?
+    let value = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+    };
+    let out = value("--out")
+        .ok_or_else(|| anyhow::anyhow!("usage: train --out FILE [--recordings DIR]"))?;
+    let scenarios = Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios");
+    let (examples, source) = match value("--recordings") {
+        Some(dir) => (
+            recorded(Path::new(dir), &scenarios)?,
+            "perception world maps recorded in closed loop, labelled by the recorded simulator truth",
+        ),
+        None => (
+            rasterized(&scenarios)?,
+            "rasterized simulator truth (not perception output)",
+        ),
+    };
+    report(&examples, source, out)
+}
+
+fn shore_test(world: &World) -> anyhow::Result<impl Fn(f64, f64) -> Option<f64> + '_> {
+    let level = world
+        .water_level
+        .context("the scenario has no water level (not maritime)")? as f64;
+    Ok(move |x: f64, y: f64| {
+        let h = world.ground_at(x, y).0 - level;
+        (h > SHORE_HEIGHT_M).then_some(h)
+    })
+}
+
+/// Examples from recorded world maps: `dir/<scenario>/run.mcap` for scenarios of `scenarios`.
+fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../launch/sets/tracker.toml"),
+    )?;
+    let table: toml::Table = toml::from_str(&text)?;
+    let cfg: TrackerConfig = table
+        .get("tracking")
+        .cloned()
+        .context("launch/sets/tracker.toml has no [tracking]")?
+        .try_into()?;
+    let mut runs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("{}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path().join("run.mcap")))
+        .filter(|p| p.is_file())
+        .collect();
+    runs.sort();
+    anyhow::ensure!(
+        !runs.is_empty(),
+        "no <scenario>/run.mcap under {}",
+        dir.display()
+    );
+    let mut examples = Examples::default();
+    let mut detector = Detector::new();
+    let mut detections = Vec::new();
+    let mut labelled = Vec::new();
+    for (si, run) in runs.iter().enumerate() {
+        let name = run.parent().unwrap().file_name().unwrap().to_string_lossy();
+        let world = sim::scenario::load_world(&scenarios.join(format!("{name}.toml")))
+            .with_context(|| format!("scenario of {}", run.display()))?;
+        let shore = shore_test(&world)?;
+        let land = |x: f64, y: f64| shore(x, y).is_some();
+        let truths = read_truth(run)?;
+        let rec = sensors::Recording::open(run)?;
+        let mut maps = 0u64;
+        for msg in rec.messages(0, |t| t == messages::topics::WORLD_MAP.name) {
+            let msg = msg?;
+            let (header, payload) =
+                messages::recording::split(&msg.data).context("corrupt framing")?;
+            // SAFETY: WorldMapHeader and MapCell are plain numbers.
+            let header: WorldMapHeader = unsafe { messages::recording::read_value(header) }
+                .context("short world-map header")?;
+            let cells: Vec<MapCell> = unsafe { messages::recording::read_slice(payload) };
+            anyhow::ensure!(cells.len() == header.grid.cell_count(), "world map size");
+            let stamp = header.hdr.stamp_ns;
+            let Some((_, truth)) = truths.range(..=stamp).next_back() else {
+                continue;
+            };
+            // The map is placed by the INS: its error moves every point of it.
+            let offset = [
+                header.vessel.position[0] - truth.own.pose.position[0],
+                header.vessel.position[1] - truth.own.pose.position[1],
+            ];
+            let objects: Vec<TruthShape> = truth
+                .objects()
+                .iter()
+                .filter(|o| o.class != truth_class::OWN_VESSEL)
+                .map(|o| TruthShape {
+                    class: match o.class {
+                        truth_class::BOAT => contact_class::BOAT,
+                        truth_class::BUOY | truth_class::MARKER => contact_class::CHANNEL_MARKER,
+                        _ => contact_class::EXTENDED,
+                    },
+                    position: [o.pose.position[0], o.pose.position[1]],
+                    yaw: o.pose.yaw,
+                    size: o.extent.map(f64::from),
+                })
+                .collect();
+            detector.detect(
+                &header.grid,
+                &cells,
+                &cfg.detect_params(&header.grid),
+                &mut detections,
+            );
+            labelled.clear();
+            label_by_truth(&detections, &objects, offset, &land, &mut labelled);
+            examples
+                .set((si as u64) << 32 | maps)
+                .extend_from_slice(&labelled);
+            maps += 1;
+        }
+        println!("{name}: {maps} world maps");
+        examples.scenarios.push(name.to_string());
+    }
+    Ok(examples)
+}
+
+/// Every ground-truth message of a recording, by stamp.
+fn read_truth(run: &Path) -> anyhow::Result<BTreeMap<u64, Box<GroundTruth>>> {
+    let rec = sensors::Recording::open(run)?;
+    let mut truths = BTreeMap::new();
+    for msg in rec.messages(0, |t| t == messages::topics::GROUND_TRUTH.name) {
+        let msg = msg?;
+        let (_, payload) = messages::recording::split(&msg.data).context("corrupt framing")?;
+        // SAFETY: GroundTruth is plain numbers.
+        let truth: GroundTruth =
+            unsafe { messages::recording::read_value(payload) }.context("short ground truth")?;
+        truths.insert(truth.hdr.stamp_ns, Box::new(truth));
+    }
+    anyhow::ensure!(
+        !truths.is_empty(),
+        "{}: no ground truth recorded",
+        run.display()
+    );
+    Ok(truths)
+}
+
+/// Examples from rasterized truth of every maritime scenario.
+fn rasterized(dir: &Path) -> anyhow::Result<Examples> {
+    let mut paths: Vec<_> = std::fs::read_dir(dir)?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         .collect();
@@ -29,17 +201,17 @@ fn main() -> anyhow::Result<()> {
     let grid_size = 200u32;
     let noise = NoiseModel::default();
     let mut detector = Detector::new();
-    let mut train: Vec<(Detection, u8)> = Vec::new();
-    let mut test: Vec<(Detection, u8)> = Vec::new();
+    let mut examples = Examples::default();
     let mut cells = vec![MapCell::default(); (grid_size * grid_size) as usize];
     let mut owner = vec![0u32; cells.len()];
-    let mut used = Vec::new();
     for (si, path) in paths.iter().enumerate() {
         let mut simulator = sim::Simulator::from_file(path)?;
-        let Some(level) = simulator.world.water_level else {
+        if simulator.world.water_level.is_none() {
             continue;
-        };
-        used.push(path.file_stem().unwrap().to_string_lossy().to_string());
+        }
+        examples
+            .scenarios
+            .push(path.file_stem().unwrap().to_string_lossy().to_string());
         let duration = simulator.world.duration;
         let mut frame = 0u64;
         while simulator.time() < duration {
@@ -70,12 +242,7 @@ fn main() -> anyhow::Result<()> {
                     size: o.extent,
                 })
                 .collect();
-            let world = &simulator.world;
-            let shore = |x: f64, y: f64| {
-                let (z, _) = world.ground_at(x, y);
-                let h = z - level as f64;
-                (h > 0.3).then_some(h)
-            };
+            let shore = shore_test(&simulator.world)?;
             let grid = GridGeometry {
                 width: grid_size,
                 height: grid_size,
@@ -87,29 +254,27 @@ fn main() -> anyhow::Result<()> {
             rasterize(
                 &grid, own, &objects, &shore, &noise, &mut rng, &mut cells, &mut owner,
             );
-            let held_out = Rng::new(seed ^ 0xfeed).uniform() < 0.2;
-            let set = if held_out { &mut test } else { &mut train };
+            let set = examples.set(seed);
             label_detections(&grid, &cells, &owner, &objects, &mut detector, 128, set);
         }
     }
+    Ok(examples)
+}
+
+fn report(examples: &Examples, source: &str, out: &str) -> anyhow::Result<()> {
     let counts = |s: &[(Detection, u8)]| {
-        [
-            contact_class::BOAT,
-            contact_class::CHANNEL_MARKER,
-            contact_class::EXTENDED,
-            contact_class::FALSE_ALARM,
-        ]
-        .map(|c| {
-            format!(
-                "{} {}",
-                contact_class::name(c),
-                s.iter().filter(|x| x.1 == c).count()
-            )
-        })
-        .join(", ")
+        tracker::classify::CLASSES
+            .map(|c| {
+                format!(
+                    "{} {}",
+                    contact_class::name(c),
+                    s.iter().filter(|x| x.1 == c).count()
+                )
+            })
+            .join(", ")
     };
-    let mut model = fit(&train, String::new()).map_err(|e| anyhow::anyhow!(e))?;
-    let acc = accuracy(&model, &test);
+    let mut model = fit(&examples.train, String::new()).map_err(|e| anyhow::anyhow!(e))?;
+    let acc = accuracy(&model, &examples.test);
     let acc_text = acc
         .iter()
         .map(|(c, ok, n)| {
@@ -122,14 +287,14 @@ fn main() -> anyhow::Result<()> {
         .collect::<Vec<_>>()
         .join(", ");
     model.provenance = format!(
-        "Gaussian naive Bayes on rasterized simulator truth (not perception output); scenarios: {}; \
-         training: {}; held-out accuracy: {acc_text}. Rebuild: cargo run --release -p tracker --example train -- --out services/tracker/models/contact.json",
-        used.join(", "),
-        counts(&train)
+        "Gaussian naive Bayes on {source}; scenarios: {}; training: {}; held-out accuracy: \
+         {acc_text}. Rebuild: see services/tracker/examples/train.rs",
+        examples.scenarios.join(", "),
+        counts(&examples.train)
     );
     std::fs::write(out, serde_json::to_string_pretty(&model)? + "\n")?;
-    println!("training examples: {}", counts(&train));
-    println!("held-out examples: {}", counts(&test));
+    println!("training examples: {}", counts(&examples.train));
+    println!("held-out examples: {}", counts(&examples.test));
     for (c, ok, n) in acc {
         println!(
             "held-out accuracy {:<12} {:5.1}% ({ok}/{n})",

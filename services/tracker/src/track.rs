@@ -6,7 +6,8 @@
 use crate::classify::Model;
 use crate::detect::{DetectParams, Detection, Detector};
 use messages::{
-    contact_class, Contact, ContactList, Header, MapCell, WorldMapHeader, MAX_CONTACTS,
+    contact_class, Contact, ContactList, GridGeometry, Header, MapCell, WorldMapHeader,
+    MAX_CONTACTS,
 };
 use nalgebra::{Matrix2, Matrix2x4, Matrix4, Vector2, Vector4};
 use pathfinding::prelude::{kuhn_munkres_min, Matrix};
@@ -41,6 +42,18 @@ pub struct TrackerConfig {
     pub max_coast_s: f64,
     /// A tentative track is deleted after this many consecutive misses.
     pub tentative_misses: u32,
+}
+
+impl TrackerConfig {
+    /// What the detector looks for in a map of `grid` (`link_m` in cells).
+    pub fn detect_params(&self, grid: &GridGeometry) -> DetectParams {
+        DetectParams {
+            threshold: self.hazard_threshold,
+            min_cells: self.min_cells,
+            max: self.max_detections,
+            link_cells: (self.link_m / grid.resolution_m).round().max(1.0) as u32,
+        }
+    }
 }
 
 impl Default for TrackerConfig {
@@ -205,12 +218,7 @@ impl Tracker {
         let dt = self.last_stamp.map_or(0.0, |p| (stamp - p) as f64 * 1e-9);
         self.last_stamp = Some(stamp);
 
-        let params = DetectParams {
-            threshold: self.cfg.hazard_threshold,
-            min_cells: self.cfg.min_cells,
-            max: self.cfg.max_detections,
-            link_cells: (self.cfg.link_m / g.resolution_m).round().max(1.0) as u32,
-        };
+        let params = self.cfg.detect_params(&g);
         self.detector
             .detect(&g, cells, &params, &mut self.detections);
         self.classes.clear();

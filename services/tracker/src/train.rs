@@ -244,6 +244,50 @@ pub fn label_detections(
     }
 }
 
+/// How far outside an object's footprint a detection still belongs to it (m): stereo spreads an
+/// object along the line of sight, and the INS error moves the whole map.
+pub const TRUTH_MARGIN_M: f64 = 2.5;
+
+/// Labels detections of a perception world map by the truth around them: the class of the object
+/// whose footprint (grown by [`TRUTH_MARGIN_M`]) holds the detection's centroid (the nearest centre
+/// if several do), EXTENDED where `is_land` says the centroid or a point of its extent box is
+/// shore, FALSE_ALARM otherwise. `map_offset` is where the map puts a point minus where it is
+/// (the INS error); detection positions are moved back by it before the test.
+pub fn label_by_truth(
+    detections: &[Detection],
+    objects: &[TruthShape],
+    map_offset: [f64; 2],
+    is_land: &dyn Fn(f64, f64) -> bool,
+    out: &mut Vec<(Detection, u8)>,
+) {
+    for d in detections {
+        let p = [d.position[0] - map_offset[0], d.position[1] - map_offset[1]];
+        let inside = |o: &TruthShape| {
+            let (dx, dy) = (p[0] - o.position[0], p[1] - o.position[1]);
+            let (s, c) = o.yaw.sin_cos();
+            let along = dx * c + dy * s;
+            let across = -dx * s + dy * c;
+            along.abs() <= o.size[0] / 2.0 + TRUTH_MARGIN_M
+                && across.abs() <= o.size[1] / 2.0 + TRUTH_MARGIN_M
+        };
+        let dist = |o: &TruthShape| (p[0] - o.position[0]).hypot(p[1] - o.position[1]);
+        let owner = objects
+            .iter()
+            .filter(|o| inside(o))
+            .min_by(|a, b| dist(a).total_cmp(&dist(b)));
+        let (hx, hy) = (d.extent[0] / 2.0, d.extent[1] / 2.0);
+        let land = [(0.0, 0.0), (-hx, -hy), (hx, -hy), (-hx, hy), (hx, hy)]
+            .iter()
+            .any(|(ox, oy)| is_land(p[0] + ox, p[1] + oy));
+        let class = match owner {
+            Some(o) => o.class,
+            None if land => contact_class::EXTENDED,
+            None => contact_class::FALSE_ALARM,
+        };
+        out.push((*d, class));
+    }
+}
+
 /// Fits a Gaussian naive-Bayes model with equal priors (the class mix of training maps says little
 /// about the mix at sea). Variances get a floor so a class with few samples does not become spiky.
 pub fn fit(samples: &[(Detection, u8)], provenance: String) -> Result<Model, String> {
@@ -300,4 +344,65 @@ pub fn accuracy(model: &Model, samples: &[(Detection, u8)]) -> Vec<(u8, u32, u32
             (class, ok, n)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn detection(position: [f64; 2]) -> Detection {
+        Detection {
+            position,
+            extent: [2.0, 2.0],
+            area: 4.0,
+            height: 1.0,
+            elongation: 1.0,
+            mean_hazard: 0.8,
+            cells: 16,
+        }
+    }
+
+    #[test]
+    fn perception_detections_are_labelled_by_the_truth_they_lie_on() {
+        // A 9 m boat heading north at (0, 50), a buoy at (10, 50), shore west of x = -40.
+        let objects = [
+            TruthShape {
+                class: contact_class::BOAT,
+                position: [0.0, 50.0],
+                yaw: std::f64::consts::FRAC_PI_2,
+                size: [9.0, 3.0, 2.0],
+            },
+            TruthShape {
+                class: contact_class::CHANNEL_MARKER,
+                position: [10.0, 50.0],
+                yaw: 0.0,
+                size: [1.0, 1.0, 1.5],
+            },
+        ];
+        let land = |x: f64, _y: f64| x < -40.0;
+        // The map is 1 m east of the truth (INS error).
+        let offset = [1.0, 0.0];
+        let dets = [
+            detection([1.5, 54.0]),  // on the boat's bow: boat
+            detection([3.5, 54.0]),  // 2.5 m abreast of the boat, under the margin: boat
+            detection([10.5, 50.0]), // the buoy
+            detection([-40.5, 0.0]), // shore under its extent box
+            detection([30.0, 20.0]), // open water: false alarm
+            detection([1.0, 62.0]),  // 7.5 m past the bow: false alarm
+        ];
+        let mut out = Vec::new();
+        label_by_truth(&dets, &objects, offset, &land, &mut out);
+        let classes: Vec<u8> = out.iter().map(|(_, c)| *c).collect();
+        assert_eq!(
+            classes,
+            [
+                contact_class::BOAT,
+                contact_class::BOAT,
+                contact_class::CHANNEL_MARKER,
+                contact_class::EXTENDED,
+                contact_class::FALSE_ALARM,
+                contact_class::FALSE_ALARM,
+            ]
+        );
+    }
 }
