@@ -52,6 +52,9 @@ pub struct ArcConfig {
     pub moving_min_speed_mps: f64,
     /// Extra clearance kept from a moving contact's predicted hull (m), on top of the corridor.
     pub moving_margin_m: f64,
+    /// While following, hazards and contacts this close (m) to the target's predicted position are
+    /// the target itself (its hull, its wake, a duplicate track) and block no arc ([`Exempt`]).
+    pub followed_exempt_m: f64,
 }
 
 impl Default for ArcConfig {
@@ -70,6 +73,7 @@ impl Default for ArcConfig {
             hysteresis_rad: 0.08,
             moving_min_speed_mps: 1.0,
             moving_margin_m: 2.0,
+            followed_exempt_m: 8.0,
         }
     }
 }
@@ -108,6 +112,7 @@ impl ArcConfig {
             ("hysteresis_rad", self.hysteresis_rad),
             ("moving_min_speed_mps", self.moving_min_speed_mps),
             ("moving_margin_m", self.moving_margin_m),
+            ("followed_exempt_m", self.followed_exempt_m),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));
@@ -164,6 +169,15 @@ pub struct Blocked {
     /// Hazards inside the table to port (y > 0) and to starboard.
     pub port: u32,
     pub starboard: u32,
+}
+
+/// A disc of the world (ENU centre, radius in m) whose hazards block no arc: the hull of the boat
+/// being followed, which the follow behaviour keeps its distance from by itself. Without it every
+/// arc longer than the follow distance runs into the target, and the boat weaves beside its wake.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exempt {
+    pub centre: [f64; 2],
+    pub radius_m: f64,
 }
 
 /// A contact that moves: it is predicted at constant velocity while the boat runs each arc.
@@ -355,11 +369,35 @@ impl ArcSet {
         vessel: [f64; 2],
         yaw: f64,
     ) -> Blocked {
+        self.blocked_except(hazards, origin, vessel, yaw, None)
+    }
+
+    /// [`Self::blocked`] leaving out the hazards inside `exempt`.
+    pub fn blocked_except(
+        &self,
+        hazards: &[[f32; 2]],
+        origin: [f64; 2],
+        vessel: [f64; 2],
+        yaw: f64,
+        exempt: Option<Exempt>,
+    ) -> Blocked {
         let (s, c) = yaw.sin_cos();
         let (ox, oy) = (origin[0] - vessel[0], origin[1] - vessel[1]);
+        // The exempt disc relative to the vessel, like the hazards below; an empty disc far away
+        // when there is none keeps the loop branch-free.
+        let (ex, ey, er2) = exempt.map_or((f64::MAX, f64::MAX, 0.0), |e| {
+            (
+                e.centre[0] - vessel[0],
+                e.centre[1] - vessel[1],
+                e.radius_m * e.radius_m,
+            )
+        });
         let mut out = Blocked::default();
         for h in hazards {
             let (dx, dy) = (h[0] as f64 + ox, h[1] as f64 + oy);
+            if (dx - ex).powi(2) + (dy - ey).powi(2) < er2 {
+                continue;
+            }
             // World offset -> body frame (rotate by -yaw).
             let body = [c * dx + s * dy, -s * dx + c * dy];
             let arcs = self.arcs_at(body);
@@ -607,6 +645,41 @@ mod tests {
         // The same obstacle behind the vessel blocks nothing.
         let b = set.blocked(&hazards, g.center, [0.0, 0.0], -PI / 2.0);
         assert_eq!(b.mask, 0);
+    }
+
+    #[test]
+    fn the_followed_boat_blocks_no_arc_but_a_buoy_beside_it_does() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let g = grid(200, 0.5);
+        let mut map = free_map(200);
+        // The followed boat 20-23 m ahead (the vessel heads north), a buoy 11 m to port at 15 m.
+        for n in [20.0, 21.0, 22.0, 23.0] {
+            put(&mut map, &g, 0.0, n);
+        }
+        put(&mut map, &g, -11.0, 15.0);
+        let mut hazards = Vec::new();
+        set.collect_hazards(&g, &map, &mut hazards);
+        let yaw = PI / 2.0;
+        let all = set.blocked(&hazards, g.center, [0.0, 0.0], yaw);
+        let exempt = Some(Exempt {
+            centre: [0.0, 24.0],
+            radius_m: 8.0,
+        });
+        let b = set.blocked_except(&hazards, g.center, [0.0, 0.0], yaw, exempt);
+        for s in straight_arcs(&set) {
+            assert_ne!(
+                all.mask & (1 << s),
+                0,
+                "straight arc {s} blocked by the boat"
+            );
+            assert_eq!(
+                b.mask & (1 << s),
+                0,
+                "straight arc {s} free with the boat exempt"
+            );
+        }
+        assert_ne!(b.mask, 0, "the buoy still blocks the arcs through it");
+        assert_eq!((b.port, b.starboard), (1, 0));
     }
 
     #[test]

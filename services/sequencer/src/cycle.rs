@@ -2,7 +2,9 @@
 //! of them into one actuator command and one status. No clock and no I/O: "now" is the newest input
 //! stamp, so the same inputs always give the same outputs.
 
-use crate::arcs::{angle_diff, ArcChooser, ArcConfig, ArcError, ArcSet, Blocked, MovingObstacle};
+use crate::arcs::{
+    angle_diff, ArcChooser, ArcConfig, ArcError, ArcSet, Blocked, Exempt, MovingObstacle,
+};
 use crate::control::{self, ControlConfig, Controller, Guidance, OwnState};
 use crate::mission::{Directive, Mission, MissionError, Runner, World};
 use crate::watchdog::{self, Watchdog, WatchdogConfig};
@@ -279,13 +281,25 @@ impl Sequencer {
                     contacts_stamp_ns: self.contacts.hdr.stamp_ns,
                 };
                 let directive = self.runner.update(now, &world);
-                let mut blocked =
-                    self.arcs
-                        .blocked(&self.hazards, self.map_origin, own.position, own.yaw);
+                let exempt = match directive {
+                    Directive::Follow { position, .. } => Some(Exempt {
+                        centre: position,
+                        radius_m: self.arcs.config().followed_exempt_m,
+                    }),
+                    _ => None,
+                };
+                let mut blocked = self.arcs.blocked_except(
+                    &self.hazards,
+                    self.map_origin,
+                    own.position,
+                    own.yaw,
+                    exempt,
+                );
                 let moving = blocked_by_moving_contacts(
                     &self.arcs,
                     &self.contacts,
                     self.runner.followed_contact(),
+                    exempt,
                     &mut self.moving,
                     &own,
                     now,
@@ -410,6 +424,7 @@ fn blocked_by_moving_contacts(
     arcs: &ArcSet,
     contacts: &ContactList,
     followed: Option<u32>,
+    exempt: Option<Exempt>,
     moving: &mut Vec<MovingObstacle>,
     own: &OwnState,
     now: u64,
@@ -425,6 +440,10 @@ fn blocked_by_moving_contacts(
                 c.confirmed == 1
                     && c.class != contact_class::FALSE_ALARM
                     && Some(c.id) != followed
+                    && !exempt.is_some_and(|e| {
+                        (c.position[0] - e.centre[0]).hypot(c.position[1] - e.centre[1])
+                            < e.radius_m
+                    })
                     && c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
             })
             .map(|c| {

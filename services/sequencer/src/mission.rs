@@ -392,8 +392,14 @@ struct Lock {
 /// taken up again by the confirmed, not-false-alarm contact nearest to where the lost one was
 /// predicted to be, if one is this close (m) ...
 const REACQUIRE_RADIUS_M: f64 = 15.0;
-/// ... plus this much per second since it was last seen (the prediction's error grows).
+/// ... plus this much per second since it was last seen (the prediction's error grows) ...
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
+/// ... and moves like it did: within this much (m/s) of its last velocity. A false track on the
+/// water nearby stands still; a duplicate's junk velocity is far off.
+const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
+/// Among those, the best has the least distance plus this many seconds times the velocity
+/// difference.
+const REACQUIRE_VELOCITY_WEIGHT_S: f64 = 3.0;
 
 impl Lock {
     /// Seconds since the target was last seen, at `stamp_ns`.
@@ -421,11 +427,15 @@ impl Lock {
         let p = self.predicted(stamp_ns);
         let gate = REACQUIRE_RADIUS_M + REACQUIRE_GROWTH_MPS * self.unseen_s(stamp_ns);
         let d = |c: &Contact| (c.position[0] - p[0]).hypot(c.position[1] - p[1]);
+        let dv = |c: &Contact| {
+            (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
+        };
+        let score = |c: &Contact| d(c) + REACQUIRE_VELOCITY_WEIGHT_S * dv(c);
         contacts
             .iter()
             .filter(|c| c.confirmed == 1 && c.class != contact_class::FALSE_ALARM)
-            .filter(|c| d(c) <= gate)
-            .min_by(|a, b| d(a).total_cmp(&d(b)).then(a.id.cmp(&b.id)))
+            .filter(|c| d(c) <= gate && dv(c) <= REACQUIRE_VELOCITY_MPS)
+            .min_by(|a, b| score(a).total_cmp(&score(b)).then(a.id.cmp(&b.id)))
     }
 }
 
@@ -1001,10 +1011,28 @@ mod tests {
             "{d:?}"
         );
         assert_eq!(r.step_name(), "follow #7");
+        // Two new tracks where #7 went: the one moving like it wins over a nearer one standing
+        // still (a false track on the water) or racing off (a duplicate's junk velocity).
+        let moving = |id, x: f64, vx: f64| Contact {
+            velocity: [vx, 0.0],
+            ..boat(id, x)
+        };
+        let contacts = [
+            moving(9, 113.0, 0.0),
+            moving(10, 112.5, 6.0),
+            moving(11, 116.0, 2.5),
+        ];
+        let w = World {
+            contacts: &contacts,
+            contacts_stamp_ns: 3 * S,
+            ..w
+        };
+        assert!(matches!(r.update(3 * S, &w), Directive::Follow { .. }));
+        assert_eq!(r.step_name(), "follow #11");
         // Target gone past the lost timeout: the step fails.
         let w = World { contacts: &[], ..w };
         assert!(matches!(r.update(4 * S, &w), Directive::Follow { .. }));
-        assert_eq!(r.update(13 * S, &w), Directive::Idle);
+        assert_eq!(r.update(14 * S, &w), Directive::Idle);
         assert!(matches!(r.state(), RunState::Failed(why) if why.contains("lost")));
     }
 

@@ -269,11 +269,22 @@ impl Tracker {
                     t.misses < tentative_misses
                 }
         });
+        self.merge_duplicates();
         for (di, d) in self.detections.iter().enumerate() {
             if used[di] {
                 continue;
             }
             let r = measurement_noise(&self.cfg, own, d.position);
+            // A second piece of an object that already has a confirmed track (a boat whose hull
+            // and wake map as two blobs) is not a new object.
+            let fragment = self
+                .tracks
+                .iter()
+                .filter(|t| t.confirmed)
+                .any(|t| same_object(t, d.position, &r, self.cfg.gate_chi2));
+            if fragment {
+                continue;
+            }
             let s2 = self.cfg.initial_speed_sigma.powi(2);
             let mut p = Matrix4::zeros();
             p.fixed_view_mut::<2, 2>(0, 0).copy_from(&r);
@@ -298,6 +309,39 @@ impl Tracker {
         }
         self.write(stamp, hdr.hdr.seq, source, out);
         Ok(())
+    }
+
+    /// Two confirmed tracks inside each other's gate and moving alike follow one object: the
+    /// younger goes, so the object keeps its older id.
+    fn merge_duplicates(&mut self) {
+        let n = self.tracks.len();
+        let mut gone = vec![false; n];
+        for i in 0..n {
+            for j in i + 1..n {
+                let (a, b) = (&self.tracks[i], &self.tracks[j]);
+                if !(a.confirmed && b.confirmed) || gone[i] || gone[j] {
+                    continue;
+                }
+                let dv = (a.x[2] - b.x[2]).hypot(a.x[3] - b.x[3]);
+                let pb = b.p.fixed_view::<2, 2>(0, 0).into_owned();
+                if dv < DUPLICATE_SPEED_MPS
+                    && (same_object(a, [b.x[0], b.x[1]], &pb, self.cfg.gate_chi2)
+                        || same_object(b, [a.x[0], a.x[1]], &pb, self.cfg.gate_chi2))
+                {
+                    let younger = if (a.born_ns, a.id) <= (b.born_ns, b.id) {
+                        j
+                    } else {
+                        i
+                    };
+                    gone[younger] = true;
+                }
+            }
+        }
+        let mut k = 0;
+        self.tracks.retain(|_| {
+            k += 1;
+            !gone[k - 1]
+        });
     }
 
     /// Optimal gated assignment; returns the detection index per track.
@@ -417,6 +461,25 @@ fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
     // Joseph form keeps P symmetric and positive.
     let i_kh = Matrix4::identity() - k * h;
     t.p = i_kh * t.p * i_kh.transpose() + k * r * k.transpose();
+}
+
+/// Two confirmed tracks whose velocities differ by less than this (m/s) can be one object.
+const DUPLICATE_SPEED_MPS: f64 = 1.5;
+
+/// A point this far (m) beyond half a track's largest extent still lies on its object.
+const FRAGMENT_MARGIN_M: f64 = 3.0;
+
+/// Whether `position` (measured with covariance `r`) lies on the object of track `t`: inside its
+/// gate, or on its hull (a boat's bow and stern can map as two blobs metres apart).
+fn same_object(t: &Track, position: [f64; 2], r: &Matrix2<f64>, gate_chi2: f64) -> bool {
+    let y = Vector2::new(position[0] - t.x[0], position[1] - t.x[1]);
+    let size = 0.5 * t.extent[0].max(t.extent[1]) as f64 + FRAGMENT_MARGIN_M;
+    if y.norm() <= size {
+        return true;
+    }
+    let s = t.p.fixed_view::<2, 2>(0, 0) + r;
+    s.try_inverse()
+        .is_some_and(|si| (y.transpose() * si * y)[0] < gate_chi2)
 }
 
 /// Position noise of a detection at `pos` seen from `own`: larger along the line of sight.

@@ -100,3 +100,59 @@ fn the_tracker_is_deterministic_and_rejects_bad_maps() {
         "same stamp twice"
     );
 }
+
+#[test]
+fn a_boat_mapped_as_hull_and_wake_blobs_is_one_track() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = GridGeometry {
+        width: 200,
+        height: 200,
+        resolution_m: 0.5,
+        center: [0.0, 0.0],
+    };
+    let mut list = Box::<ContactList>::default();
+    let mut most_confirmed = 0;
+    // A 6 m x 2.5 m boat heading north at 5 m/s, and its wake 1.5 m astern, 10 Hz for 6 s.
+    for k in 0..60u64 {
+        let bow_y = -20.0 + 0.5 * k as f64;
+        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let mut blob = |x0: f64, x1: f64, y0: f64, y1: f64, hazard: u8| {
+            for row in 0..grid.height {
+                for col in 0..grid.width {
+                    let [x, y] = grid.cell_center(col, row);
+                    if (x0..=x1).contains(&x) && (y0..=y1).contains(&y) {
+                        cells[(row * grid.width + col) as usize] = MapCell {
+                            hazard,
+                            max_height_cm: 120,
+                            observed: 3,
+                            ..Default::default()
+                        };
+                    }
+                }
+            }
+        };
+        blob(-1.25, 1.25, bow_y - 6.0, bow_y, 230);
+        // The wake shows in most frames, from the start.
+        if k % 4 != 3 {
+            blob(-1.0, 1.0, bow_y - 9.0, bow_y - 7.5, 150);
+        }
+        let hdr = WorldMapHeader {
+            hdr: Header::new(k, 1_000_000_000 + k * 100_000_000, "test"),
+            grid,
+            vessel: Pose::default(),
+            fused: k,
+        };
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        let confirmed = list.as_slice().iter().filter(|c| c.confirmed == 1).count();
+        most_confirmed = most_confirmed.max(confirmed);
+    }
+    let confirmed: Vec<_> = list
+        .as_slice()
+        .iter()
+        .filter(|c| c.confirmed == 1)
+        .collect();
+    assert_eq!(confirmed.len(), 1, "{:?}", list.as_slice());
+    assert_eq!(most_confirmed, 1, "a duplicate was reported");
+    let speed = confirmed[0].velocity[0].hypot(confirmed[0].velocity[1]);
+    assert!((speed - 5.0).abs() < 0.5, "speed {speed}");
+}
