@@ -17,7 +17,8 @@
 //! shore are rasterized with the stereo noise model of `tracker::train` (no perception involved).
 //!
 //! Maps are split 80/20 (by a hash of scenario and map) into training and held-out sets; the
-//! per-class held-out accuracy is printed and kept in the model's provenance.
+//! per-class held-out accuracy and confusion are printed, and the accuracy is kept in the model's
+//! provenance. `--compare MODEL` also prints another model's confusion on the same held-out maps.
 
 use anyhow::Context;
 use messages::{contact_class, truth_class, GridGeometry, GroundTruth, MapCell, WorldMapHeader};
@@ -71,7 +72,38 @@ fn main() -> anyhow::Result<()> {
             "rasterized simulator truth (not perception output)",
         ),
     };
+    if let Some(other) = value("--compare") {
+        // The same held-out maps through another model (the committed one, say).
+        let other = tracker::Model::load(Path::new(other))?;
+        println!("compared model {}:", value("--compare").unwrap());
+        print_confusion(&other, &examples.test);
+    }
     report(&examples, source, out)
+}
+
+/// Held-out confusion: one row per true class, counts per predicted class.
+fn print_confusion(model: &tracker::Model, samples: &[(Detection, u8)]) {
+    let classes = tracker::classify::CLASSES;
+    println!(
+        "  {:<12} {}",
+        "true \\ said",
+        classes
+            .map(|c| format!("{:>12}", contact_class::name(c)))
+            .join("")
+    );
+    for truth in classes {
+        let row = classes.map(|said| {
+            samples
+                .iter()
+                .filter(|(d, c)| *c == truth && model.classify(d).0 == said)
+                .count()
+        });
+        println!(
+            "  {:<12} {}",
+            contact_class::name(truth),
+            row.map(|n| format!("{n:>12}")).join("")
+        );
+    }
 }
 
 fn shore_test(world: &World) -> anyhow::Result<impl Fn(f64, f64) -> Option<f64> + '_> {
@@ -292,6 +324,7 @@ fn report(examples: &Examples, source: &str, out: &str) -> anyhow::Result<()> {
         examples.scenarios.join(", "),
         counts(&examples.train)
     );
+    print_confusion(&model, &examples.test);
     std::fs::write(out, serde_json::to_string_pretty(&model)? + "\n")?;
     println!("training examples: {}", counts(&examples.train));
     println!("held-out examples: {}", counts(&examples.test));
