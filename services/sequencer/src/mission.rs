@@ -438,10 +438,18 @@ impl Lock {
             (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
         };
         let score = |c: &Contact| d(c) + REACQUIRE_VELOCITY_WEIGHT_S * dv(c);
+        let self_speed = self.velocity[0].hypot(self.velocity[1]);
         contacts
             .iter()
             .filter(|c| c.confirmed == 1 && c.class != contact_class::FALSE_ALARM)
-            .filter(|c| d(c) <= gate && dv(c) <= velocity_gate)
+            // The velocity gate widens (the target may have turned), its speed gate does not:
+            // a turning boat keeps its speed, a false track on the water stands still.
+            .filter(|c| {
+                let speed_change = c.velocity[0].hypot(c.velocity[1]) - self_speed;
+                d(c) <= gate
+                    && dv(c) <= velocity_gate
+                    && speed_change.abs() <= REACQUIRE_VELOCITY_MPS
+            })
             .min_by(|a, b| score(a).total_cmp(&score(b)).then(a.id.cmp(&b.id)))
     }
 }
@@ -1012,8 +1020,15 @@ mod tests {
         // 5.7 m/s off the followed velocity, too far after 2 s unseen (3 + 1 m/s per second) ...
         update(&mut r, 3 * S + S / 2, &[boat(9, 110.0, 4.0, [0.0, 4.0])]);
         assert_eq!(r.step_name(), "follow #4");
-        // ... and taken up after 3 s.
-        let v = update(&mut r, 4 * S + S / 2, &[boat(9, 112.0, 5.0, [0.0, 4.0])]);
+        // ... and taken up after 3 s; a track standing still there never is.
+        let v = update(
+            &mut r,
+            4 * S + S / 2,
+            &[
+                boat(8, 113.0, 1.0, [0.0, 0.0]),
+                boat(9, 112.0, 5.0, [0.0, 4.0]),
+            ],
+        );
         assert_eq!(r.step_name(), "follow #9");
         assert!(v[1] > 0.0 && v[0] < 4.0, "{v:?}");
     }
