@@ -389,7 +389,7 @@ struct Lock {
 }
 
 /// A followed target whose track broke (the tracker lost it for a moment and gave it a new id) is
-/// taken up again by the confirmed, not-false-alarm contact nearest to where the lost one was
+/// taken up again by the confirmed contact nearest to where the lost one was
 /// predicted to be, if one is this close (m) ...
 const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows) ...
@@ -399,6 +399,8 @@ const REACQUIRE_GROWTH_MPS: f64 = 2.0;
 const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
 /// ... plus this much per second unseen (m/s^2): the target may have turned meanwhile.
 const REACQUIRE_VELOCITY_GROWTH_MPS2: f64 = 1.0;
+/// A contact the tracker calls a false alarm scores this much (m) worse.
+const REACQUIRE_FALSE_ALARM_PENALTY_M: f64 = 10.0;
 /// Time constant (s) of the followed velocity: a track's velocity jitters, and a new track's is
 /// young and noisy, so the goal follows a low-passed one instead of every jump.
 const FOLLOW_VELOCITY_TAU_S: f64 = 1.5;
@@ -421,13 +423,12 @@ impl Lock {
         ]
     }
 
-    /// The contact that continues this lock: the same id (unless the tracker now calls it a false
-    /// alarm), or a new track where the target went.
+    /// The contact that continues this lock: the same id, or a new track where the target went.
+    /// The class is only a tie-breaker: a track's class flips with the classifier's mistakes,
+    /// while where it is and how it moves do not.
     fn find<'a>(&self, contacts: &'a [Contact], stamp_ns: u64) -> Option<&'a Contact> {
         if let Some(c) = contacts.iter().find(|c| c.id == self.id) {
-            if c.class != contact_class::FALSE_ALARM {
-                return Some(c);
-            }
+            return Some(c);
         }
         let p = self.predicted(stamp_ns);
         let gate = REACQUIRE_RADIUS_M + REACQUIRE_GROWTH_MPS * self.unseen_s(stamp_ns);
@@ -437,11 +438,18 @@ impl Lock {
         let dv = |c: &Contact| {
             (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
         };
-        let score = |c: &Contact| d(c) + REACQUIRE_VELOCITY_WEIGHT_S * dv(c);
+        let score = |c: &Contact| {
+            let penalty = if c.class == contact_class::FALSE_ALARM {
+                REACQUIRE_FALSE_ALARM_PENALTY_M
+            } else {
+                0.0
+            };
+            d(c) + REACQUIRE_VELOCITY_WEIGHT_S * dv(c) + penalty
+        };
         let self_speed = self.velocity[0].hypot(self.velocity[1]);
         contacts
             .iter()
-            .filter(|c| c.confirmed == 1 && c.class != contact_class::FALSE_ALARM)
+            .filter(|c| c.confirmed == 1)
             // The velocity gate widens (the target may have turned), its speed gate does not:
             // a turning boat keeps its speed, a false track on the water stands still.
             .filter(|c| {
