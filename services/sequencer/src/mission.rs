@@ -389,7 +389,7 @@ struct Lock {
 }
 
 /// A followed target whose track broke (the tracker lost it for a moment and gave it a new id) is
-/// taken up again by the confirmed contact nearest to where the lost one was
+/// taken up again by the confirmed, not-false-alarm contact nearest to where the lost one was
 /// predicted to be, if one is this close (m) ...
 const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows) ...
@@ -397,13 +397,6 @@ const REACQUIRE_GROWTH_MPS: f64 = 2.0;
 /// ... and moves like it did: within this much (m/s) of its last velocity. A false track on the
 /// water nearby stands still; a duplicate's junk velocity is far off.
 const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
-/// ... plus this much per second unseen (m/s^2): the target may have turned meanwhile.
-const REACQUIRE_VELOCITY_GROWTH_MPS2: f64 = 1.0;
-/// A contact the tracker calls a false alarm scores this much (m) worse.
-const REACQUIRE_FALSE_ALARM_PENALTY_M: f64 = 10.0;
-/// Time constant (s) of the followed velocity: a track's velocity jitters, and a new track's is
-/// young and noisy, so the goal follows a low-passed one instead of every jump.
-const FOLLOW_VELOCITY_TAU_S: f64 = 1.5;
 /// Among those, the best has the least distance plus this many seconds times the velocity
 /// difference.
 const REACQUIRE_VELOCITY_WEIGHT_S: f64 = 3.0;
@@ -423,41 +416,25 @@ impl Lock {
         ]
     }
 
-    /// The contact that continues this lock: the same id, or a new track where the target went.
-    /// The class is only a tie-breaker: a track's class flips with the classifier's mistakes,
-    /// while where it is and how it moves do not.
+    /// The contact that continues this lock: the same id (unless the tracker now calls it a false
+    /// alarm), or a new track where the target went.
     fn find<'a>(&self, contacts: &'a [Contact], stamp_ns: u64) -> Option<&'a Contact> {
         if let Some(c) = contacts.iter().find(|c| c.id == self.id) {
-            return Some(c);
+            if c.class != contact_class::FALSE_ALARM {
+                return Some(c);
+            }
         }
         let p = self.predicted(stamp_ns);
         let gate = REACQUIRE_RADIUS_M + REACQUIRE_GROWTH_MPS * self.unseen_s(stamp_ns);
-        let velocity_gate =
-            REACQUIRE_VELOCITY_MPS + REACQUIRE_VELOCITY_GROWTH_MPS2 * self.unseen_s(stamp_ns);
         let d = |c: &Contact| (c.position[0] - p[0]).hypot(c.position[1] - p[1]);
         let dv = |c: &Contact| {
             (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
         };
-        let score = |c: &Contact| {
-            let penalty = if c.class == contact_class::FALSE_ALARM {
-                REACQUIRE_FALSE_ALARM_PENALTY_M
-            } else {
-                0.0
-            };
-            d(c) + REACQUIRE_VELOCITY_WEIGHT_S * dv(c) + penalty
-        };
-        let self_speed = self.velocity[0].hypot(self.velocity[1]);
+        let score = |c: &Contact| d(c) + REACQUIRE_VELOCITY_WEIGHT_S * dv(c);
         contacts
             .iter()
-            .filter(|c| c.confirmed == 1)
-            // The velocity gate widens (the target may have turned), its speed gate does not:
-            // a turning boat keeps its speed, a false track on the water stands still.
-            .filter(|c| {
-                let speed_change = c.velocity[0].hypot(c.velocity[1]) - self_speed;
-                d(c) <= gate
-                    && dv(c) <= velocity_gate
-                    && speed_change.abs() <= REACQUIRE_VELOCITY_MPS
-            })
+            .filter(|c| c.confirmed == 1 && c.class != contact_class::FALSE_ALARM)
+            .filter(|c| d(c) <= gate && dv(c) <= REACQUIRE_VELOCITY_MPS)
             .min_by(|a, b| score(a).total_cmp(&score(b)).then(a.id.cmp(&b.id)))
     }
 }
@@ -745,19 +722,8 @@ impl Runner {
                         max_speed_mps,
                     });
                 };
-                let velocity = match self.lock {
-                    Some(l) => {
-                        let dt = l.unseen_s(world.contacts_stamp_ns);
-                        let a = (dt / FOLLOW_VELOCITY_TAU_S).min(1.0);
-                        [
-                            l.velocity[0] + a * (c.velocity[0] - l.velocity[0]),
-                            l.velocity[1] + a * (c.velocity[1] - l.velocity[1]),
-                        ]
-                    }
-                    None => c.velocity,
-                };
-                let course = if velocity[0].hypot(velocity[1]) > 0.5 {
-                    velocity[1].atan2(velocity[0])
+                let course = if c.velocity[0].hypot(c.velocity[1]) > 0.5 {
+                    c.velocity[1].atan2(c.velocity[0])
                 } else {
                     self.lock.map_or(own.yaw, |l| l.course)
                 };
@@ -766,16 +732,16 @@ impl Runner {
                     course,
                     last_seen_ns: world.contacts_stamp_ns,
                     position: c.position,
-                    velocity,
+                    velocity: c.velocity,
                 });
                 // The list is as old as its stamp: predict the target to now.
                 let age = now.saturating_sub(world.contacts_stamp_ns) as f64 / NS;
                 Some(Directive::Follow {
                     position: [
-                        c.position[0] + velocity[0] * age,
-                        c.position[1] + velocity[1] * age,
+                        c.position[0] + c.velocity[0] * age,
+                        c.position[1] + c.velocity[1] * age,
                     ],
-                    velocity,
+                    velocity: c.velocity,
                     course,
                     offset,
                     max_speed_mps,
@@ -990,55 +956,6 @@ mod tests {
         r.abort().unwrap();
         assert_eq!(r.update(106 * S, &world([0.0, 0.0])), Directive::Idle);
         assert!(r.pause().is_err());
-    }
-
-    #[test]
-    fn the_followed_velocity_is_low_passed_and_a_turned_target_is_taken_up_again() {
-        let m =
-            Mission::parse("[[step]]\ntype = \"follow\"\ncontact_id = 4\nastern_m = 20\n").unwrap();
-        let mut r = Runner::new(10.0);
-        r.load(m);
-        let boat = |id, x: f64, y: f64, v: [f64; 2]| Contact {
-            id,
-            class: contact_class::BOAT,
-            confirmed: 1,
-            position: [x, y],
-            velocity: v,
-            ..Default::default()
-        };
-        let update = |r: &mut Runner, t: u64, c: &[Contact]| {
-            let w = World {
-                own: OwnState::default(),
-                contacts: c,
-                contacts_stamp_ns: t,
-            };
-            match r.update(t, &w) {
-                Directive::Follow { velocity, .. } => velocity,
-                d => panic!("{d:?}"),
-            }
-        };
-        assert_eq!(
-            update(&mut r, S, &[boat(4, 100.0, 0.0, [2.0, 0.0])]),
-            [2.0, 0.0]
-        );
-        // The track's velocity jumps to 8 m/s half a second later: a third of the jump is taken.
-        let v = update(&mut r, S + S / 2, &[boat(4, 101.0, 0.0, [8.0, 0.0])]);
-        assert!((v[0] - 4.0).abs() < 1e-9, "{v:?}");
-        // The target turns north while its track breaks: a new track moving at 4 m/s north is
-        // 5.7 m/s off the followed velocity, too far after 2 s unseen (3 + 1 m/s per second) ...
-        update(&mut r, 3 * S + S / 2, &[boat(9, 110.0, 4.0, [0.0, 4.0])]);
-        assert_eq!(r.step_name(), "follow #4");
-        // ... and taken up after 3 s; a track standing still there never is.
-        let v = update(
-            &mut r,
-            4 * S + S / 2,
-            &[
-                boat(8, 113.0, 1.0, [0.0, 0.0]),
-                boat(9, 112.0, 5.0, [0.0, 4.0]),
-            ],
-        );
-        assert_eq!(r.step_name(), "follow #9");
-        assert!(v[1] > 0.0 && v[0] < 4.0, "{v:?}");
     }
 
     #[test]
