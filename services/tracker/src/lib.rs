@@ -2,9 +2,11 @@
 //! al. sections 4-5). Each world map goes through
 //! 1. [`detect`]: 8-connected components of hazard cells with extent, area, height, elongation;
 //! 2. [`classify`]: a Gaussian naive-Bayes model (boat, channel marker, extended/shore, false
-//!    alarm) trained offline by `--example train` on rasterized simulator truth and loaded at start;
+//!    alarm) trained offline by `--example train` on recorded perception world maps labelled by
+//!    the simulator truth, and loaded at start;
 //! 3. [`track`]: constant-velocity Kalman filters in ENU, gated optimal assignment (Kuhn-Munkres),
-//!    M-of-N confirmation, coasting and deletion, into a fixed-size `ContactList`.
+//!    M-of-N confirmation, no births on a confirmed track's hull, merging of duplicates, coasting
+//!    and deletion, into a fixed-size `ContactList`.
 //!
 //! Pure and deterministic: no IPC, no clock. [`eval`] scores contact lists against ground truth.
 

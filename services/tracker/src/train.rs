@@ -1,11 +1,13 @@
 //! Training data and fitting for the contact classifier.
 //!
-//! The labelled examples come from simulator ground truth rasterized into a world-map-like grid
-//! with a noise model of what stereo sees: only the side facing the vessel, cells dropped more often
-//! with range, positions spread along the line of sight with range, heights under-estimated, and
-//! spurious small low blobs from waves as false alarms. It is rasterized truth, not perception
-//! output: the model is only as good as that noise model, and should be retrained on recorded
-//! perception maps once they are labelled.
+//! Two sources of labelled examples:
+//! - [`label_by_truth`]: detections of recorded perception world maps, labelled by the recorded
+//!   simulator truth under them (what the committed model is trained on);
+//! - [`rasterize`] + [`label_detections`]: simulator truth rasterized into a world-map-like grid
+//!   with a noise model of what stereo sees (only the side facing the vessel, cells dropped more
+//!   often with range, positions spread along the line of sight, heights under-estimated, small
+//!   low wave blobs as false alarms), for scenes with no recording. The model is only as good as
+//!   that noise model: in closed loop it called most boats "extended".
 
 use crate::classify::{features, ClassModel, Model, CLASSES, FEATURES};
 use crate::detect::{Detection, Detector};
