@@ -32,9 +32,12 @@ fn a_boat_moving_at_5_mps_gives_one_confirmed_track_with_a_stable_id() {
                 let (dx, dy) = (x - bx, y - by);
                 let along = dx * 0.6f64.cos() + dy * 0.6f64.sin();
                 let across = -dx * 0.6f64.sin() + dy * 0.6f64.cos();
-                if along.abs() <= 3.0 && across.abs() <= 1.25 {
+                // What stereo maps of a hull: its rim at moderate hazard, not a solid rectangle.
+                let inside = along.abs() <= 3.0 && across.abs() <= 1.25;
+                let rim = (3.0 - along.abs()).min(1.25 - across.abs()) <= 0.75;
+                if inside && rim {
                     cells[(row * grid.width + col) as usize] = MapCell {
-                        hazard: 230,
+                        hazard: 150,
                         max_height_cm: 150,
                         observed: 3,
                         ..Default::default()
