@@ -323,10 +323,13 @@ impl Tracker {
                     continue;
                 }
                 let dv = (a.x[2] - b.x[2]).hypot(a.x[3] - b.x[3]);
+                // Each track's position is measured with the other's covariance: the gate test
+                // is on the summed covariance either way, the hull test on each one's extent.
+                let pa = a.p.fixed_view::<2, 2>(0, 0).into_owned();
                 let pb = b.p.fixed_view::<2, 2>(0, 0).into_owned();
                 if dv < DUPLICATE_SPEED_MPS
                     && (same_object(a, [b.x[0], b.x[1]], &pb, self.cfg.gate_chi2)
-                        || same_object(b, [a.x[0], a.x[1]], &pb, self.cfg.gate_chi2))
+                        || same_object(b, [a.x[0], a.x[1]], &pa, self.cfg.gate_chi2))
                 {
                     let younger = if (a.born_ns, a.id) <= (b.born_ns, b.id) {
                         j

@@ -5,6 +5,16 @@ use messages::{contact_class, ContactList, GridGeometry, Header, MapCell, Pose, 
 use std::path::Path;
 use tracker::{Model, Tracker, TrackerConfig};
 
+/// A 100 m map at 0.5 m centred on the vessel at the origin.
+fn grid_100m() -> GridGeometry {
+    GridGeometry {
+        width: 200,
+        height: 200,
+        resolution_m: 0.5,
+        center: [0.0, 0.0],
+    }
+}
+
 fn model() -> Model {
     Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json")).unwrap()
 }
@@ -12,12 +22,7 @@ fn model() -> Model {
 #[test]
 fn a_boat_moving_at_5_mps_gives_one_confirmed_track_with_a_stable_id() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
-    let grid = GridGeometry {
-        width: 200,
-        height: 200,
-        resolution_m: 0.5,
-        center: [0.0, 0.0],
-    };
+    let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
     let mut ids = Vec::new();
     // 6 m x 2.5 m boat heading north-east at 5 m/s, 10 Hz, 8 s.
@@ -107,12 +112,7 @@ fn the_tracker_is_deterministic_and_rejects_bad_maps() {
 #[test]
 fn a_boat_mapped_as_hull_and_wake_blobs_is_one_track() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
-    let grid = GridGeometry {
-        width: 200,
-        height: 200,
-        resolution_m: 0.5,
-        center: [0.0, 0.0],
-    };
+    let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
     let mut most_confirmed = 0;
     // A 6 m x 2.5 m boat heading north at 5 m/s, and its wake 1.5 m astern, 10 Hz for 6 s.
