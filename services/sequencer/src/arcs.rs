@@ -48,8 +48,16 @@ pub struct ArcConfig {
     /// The previous arc is kept while its goal error is within this much (rad) of the best arc's.
     pub hysteresis_rad: f64,
     /// Contacts faster than this (m/s) are predicted along their velocity while the boat runs each
-    /// arc ([`ArcSet::blocked_by_moving`]); slower ones are left to the map.
+    /// arc ([`ArcSet::blocked_by_moving`]); slower ones block where they are, like a map hazard
+    /// (a buoy the tracker holds before the world map has confirmed it at `hazard_threshold`).
     pub moving_min_speed_mps: f64,
+    /// Contacts larger than this (m, along either map axis) are shore or bank pieces: the map holds
+    /// them, and their tracked velocity is the blob changing shape, not motion.
+    pub contact_max_extent_m: f64,
+    /// Arc length (m) within which an obstacle rules an arc out even at `control.blocked_speed_mps`.
+    /// When every arc is blocked somewhere, the boat slows down and takes the arc free for at least
+    /// this long that points closest to the goal; only when none is, it brakes and turns away.
+    pub near_m: f64,
     /// Extra clearance kept from a moving contact's predicted hull (m), on top of the corridor.
     pub moving_margin_m: f64,
     /// While following, hazards and contacts this close (m) to the target's predicted position are
@@ -72,6 +80,8 @@ impl Default for ArcConfig {
             unknown_is_blocked: false,
             hysteresis_rad: 0.08,
             moving_min_speed_mps: 1.0,
+            contact_max_extent_m: 15.0,
+            near_m: 15.0,
             moving_margin_m: 2.0,
             followed_exempt_m: 8.0,
         }
@@ -111,6 +121,8 @@ impl ArcConfig {
             ("hazard_threshold", self.hazard_threshold),
             ("hysteresis_rad", self.hysteresis_rad),
             ("moving_min_speed_mps", self.moving_min_speed_mps),
+            ("contact_max_extent_m", self.contact_max_extent_m),
+            ("near_m", self.near_m),
             ("moving_margin_m", self.moving_margin_m),
             ("followed_exempt_m", self.followed_exempt_m),
         ] {
@@ -161,14 +173,27 @@ impl Arc {
     }
 }
 
-/// Blocked arcs of one cycle, and on which side the hazards lie (to turn away when all are blocked).
+/// Blocked arcs of one cycle, and on which side the close hazards lie (to turn away when all are
+/// blocked close in).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Blocked {
-    /// Bit i set: arc i is blocked.
+    /// Bit i set: arc i is blocked somewhere along its length.
     pub mask: u128,
-    /// Hazards inside the table to port (y > 0) and to starboard.
+    /// Bit i set: arc i is blocked within [`ArcConfig::near_m`] of the boat (a subset of `mask`).
+    pub near: u128,
+    /// Hazards blocking an arc within `near_m`, to port (y > 0) and to starboard.
     pub port: u32,
     pub starboard: u32,
+}
+
+impl Blocked {
+    /// Both sets of obstacles together.
+    pub fn merge(&mut self, other: Blocked) {
+        self.mask |= other.mask;
+        self.near |= other.near;
+        self.port += other.port;
+        self.starboard += other.starboard;
+    }
 }
 
 /// A disc of the world (ENU centre, radius in m) whose hazards block no arc: the hull of the boat
@@ -202,6 +227,8 @@ pub struct ArcSet {
     side: usize,
     /// Body-frame cell -> arcs whose corridor covers it. Row-major over (y, x).
     lut: Vec<u128>,
+    /// The same for the first [`ArcConfig::near_m`] of each arc.
+    lut_near: Vec<u128>,
     /// Largest distance from the vessel at which any corridor reaches (m).
     reach: f64,
     hazard_u8: u8,
@@ -236,6 +263,7 @@ impl ArcSet {
             half,
             side,
             lut: vec![0; side * side],
+            lut_near: vec![0; side * side],
             reach,
             hazard_u8: (cfg.hazard_threshold * 255.0).ceil().clamp(0.0, 255.0) as u8,
         };
@@ -246,13 +274,13 @@ impl ArcSet {
             for n in 0..=steps {
                 let s = arc.extent_m * n as f64 / steps as f64;
                 let radius = corridor_half_width(cfg, resolution, s);
-                set.stamp_disc(Arc::point(arc.curvature, s), radius, 1u128 << a);
+                set.stamp_disc(Arc::point(arc.curvature, s), radius, 1u128 << a, s <= cfg.near_m);
             }
         }
         Ok(set)
     }
 
-    fn stamp_disc(&mut self, centre: [f64; 2], radius: f64, bit: u128) {
+    fn stamp_disc(&mut self, centre: [f64; 2], radius: f64, bit: u128, near: bool) {
         let r = self.resolution;
         let lo = |v: f64| (((v - radius) / r).floor() as i32 + self.half).max(0);
         let hi = |v: f64| (((v + radius) / r).ceil() as i32 + self.half).min(self.side as i32 - 1);
@@ -261,7 +289,11 @@ impl ArcSet {
             for i in lo(centre[0])..=hi(centre[0]) {
                 let x = (i - self.half) as f64 * r + 0.5 * r;
                 if (x - centre[0]).powi(2) + (y - centre[1]).powi(2) <= radius * radius {
-                    self.lut[j as usize * self.side + i as usize] |= bit;
+                    let k = j as usize * self.side + i as usize;
+                    self.lut[k] |= bit;
+                    if near {
+                        self.lut_near[k] |= bit;
+                    }
                 }
             }
         }
@@ -298,14 +330,22 @@ impl ArcSet {
         }
     }
 
-    /// Arcs whose corridor covers the body-frame point (x forward, y left).
-    pub fn arcs_at(&self, body: [f64; 2]) -> u128 {
+    /// Table index of the body-frame point (x forward, y left), if the table covers it.
+    fn table_index(&self, body: [f64; 2]) -> Option<usize> {
         let i = (body[0] * self.inv_resolution).floor() as i32 + self.half;
         let j = (body[1] * self.inv_resolution).floor() as i32 + self.half;
-        if i < 0 || j < 0 || i >= self.side as i32 || j >= self.side as i32 {
-            return 0;
-        }
-        self.lut[j as usize * self.side + i as usize]
+        (i >= 0 && j >= 0 && i < self.side as i32 && j < self.side as i32)
+            .then(|| j as usize * self.side + i as usize)
+    }
+
+    /// Arcs whose corridor covers the body-frame point (x forward, y left).
+    pub fn arcs_at(&self, body: [f64; 2]) -> u128 {
+        self.table_index(body).map_or(0, |k| self.lut[k])
+    }
+
+    /// Arcs whose corridor covers the body-frame point within their first `near_m`.
+    pub fn near_arcs_at(&self, body: [f64; 2]) -> u128 {
+        self.table_index(body).map_or(0, |k| self.lut_near[k])
     }
 
     /// The one pass over the map: appends the east/north offsets (m, from the grid centre, which is
@@ -400,9 +440,13 @@ impl ArcSet {
             }
             // World offset -> body frame (rotate by -yaw).
             let body = [c * dx + s * dy, -s * dx + c * dy];
-            let arcs = self.arcs_at(body);
-            if arcs != 0 {
-                out.mask |= arcs;
+            let Some(k) = self.table_index(body) else {
+                continue;
+            };
+            out.mask |= self.lut[k];
+            let near = self.lut_near[k];
+            if near != 0 {
+                out.near |= near;
                 if body[1] > 0.0 {
                     out.port += 1;
                 } else {
@@ -434,12 +478,12 @@ impl ArcSet {
         for o in obstacles {
             let p0 = to_body([o.position[0] - vessel[0], o.position[1] - vessel[1]]);
             let v = to_body(o.velocity);
-            let mut hit = false;
+            let mut near_hit = false;
             for (a, arc) in self.arcs.iter().enumerate() {
                 // One sample per metre of arc: a contact moves < 1 m per sample at the speeds the
                 // boat meets, and the corridor is several metres wide.
                 let steps = arc.extent_m.ceil().max(1.0) as usize;
-                let conflict = (0..=steps).any(|n| {
+                let first_conflict = (0..=steps).find_map(|n| {
                     let s = arc.extent_m * n as f64 / steps as f64;
                     let t = s / speed;
                     let own = Arc::point(arc.curvature, s);
@@ -450,14 +494,17 @@ impl ArcSet {
                         + self.cfg.safety_margin_m
                         + o.radius_m
                         + self.cfg.moving_margin_m;
-                    dx * dx + dy * dy < clear * clear
+                    (dx * dx + dy * dy < clear * clear).then_some(s)
                 });
-                if conflict {
+                if let Some(s) = first_conflict {
                     out.mask |= 1u128 << a;
-                    hit = true;
+                    if s <= self.cfg.near_m {
+                        out.near |= 1u128 << a;
+                        near_hit = true;
+                    }
                 }
             }
-            if hit {
+            if near_hit {
                 if p0[1] > 0.0 {
                     out.port += 1;
                 } else {
@@ -757,7 +804,9 @@ mod tests {
             b.mask & (1 << straight) != 0,
             "the straight arc must be blocked"
         );
-        assert_eq!((b.port, b.starboard), (0, 1));
+        // It meets the straight arc 25 m out: beyond `near_m`, so slowing down would still avoid it.
+        assert_eq!(b.near & (1 << straight), 0);
+        assert_eq!((b.port, b.starboard), (0, 0));
         // Turning hard to starboard passes astern of it; the gentle turns meet it.
         assert!(b.mask & 1 == 0, "hardest starboard arc stays free");
         assert!(
@@ -781,6 +830,14 @@ mod tests {
         };
         let b = set.blocked_by_moving(&[stopped], [0.0, 0.0], yaw, 5.0);
         assert!(b.mask & (1 << straight) == 0);
+        // Stopped 10 m ahead and 2 m to starboard, it blocks the straight arc close in.
+        let close = MovingObstacle {
+            position: [2.0, 10.0],
+            ..stopped
+        };
+        let b = set.blocked_by_moving(&[close], [0.0, 0.0], yaw, 5.0);
+        assert_ne!(b.near & (1 << straight), 0);
+        assert_eq!((b.port, b.starboard), (0, 1));
     }
 
     #[test]

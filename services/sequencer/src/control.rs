@@ -82,9 +82,11 @@ pub struct ControlConfig {
     pub station_speed_mps: f64,
     /// Slow down approaching the last waypoint: speed <= this gain x distance (1/s).
     pub arrival_gain: f64,
-    /// No traversable arc: throttle while turning away for `blocked_slow_s`, then 0.
-    pub blocked_throttle_pct: f64,
-    pub blocked_slow_s: f64,
+    /// Every arc blocked somewhere: speed along the arc that is free close in (m/s).
+    pub blocked_speed_mps: f64,
+    /// Astern throttle that brakes when avoidance must shed speed (percent, -100..=0; 0: coast).
+    /// The boat's drag alone takes tens of seconds to slow it from cruise.
+    pub brake_throttle_pct: f64,
 }
 
 impl Default for ControlConfig {
@@ -127,8 +129,8 @@ impl Default for ControlConfig {
             min_separation_m: 8.0,
             station_speed_mps: 2.0,
             arrival_gain: 0.5,
-            blocked_throttle_pct: 15.0,
-            blocked_slow_s: 3.0,
+            blocked_speed_mps: 2.0,
+            brake_throttle_pct: -30.0,
         }
     }
 }
@@ -151,8 +153,16 @@ impl ControlConfig {
         if !(self.near_range_m >= 0.0 && self.near_range_m < self.far_range_m) {
             return Err("control.near_range_m must be in [0, far_range_m)".into());
         }
-        if !(self.min_throttle_pct <= 0.0 && self.min_throttle_pct >= -100.0) {
-            return Err("control.min_throttle_pct must be in [-100, 0]".into());
+        for (name, v) in [
+            ("min_throttle_pct", self.min_throttle_pct),
+            ("brake_throttle_pct", self.brake_throttle_pct),
+        ] {
+            if !(-100.0..=0.0).contains(&v) {
+                return Err(format!("control.{name} must be in [-100, 0], got {v}"));
+            }
+        }
+        if !(self.blocked_speed_mps.is_finite() && self.blocked_speed_mps >= 0.0) {
+            return Err("control.blocked_speed_mps must be >= 0".into());
         }
         Ok(())
     }
@@ -300,6 +310,19 @@ impl Controller {
         g: &Guidance,
         dt: f64,
     ) -> (f64, f64) {
+        self.step_with_floor(cfg, own, g, dt, cfg.min_throttle_pct)
+    }
+
+    /// [`Self::step`] with throttle allowed down to `floor` (percent), so that the speed loop can
+    /// brake astern when avoidance asks for a lower speed than the boat has.
+    pub fn step_with_floor(
+        &mut self,
+        cfg: &ControlConfig,
+        own: &OwnState,
+        g: &Guidance,
+        dt: f64,
+        floor: f64,
+    ) -> (f64, f64) {
         let t =
             ((g.range_m - cfg.near_range_m) / (cfg.far_range_m - cfg.near_range_m)).clamp(0.0, 1.0);
         let hg = cfg.heading_near.blend(&cfg.heading_far, t);
@@ -315,7 +338,7 @@ impl Controller {
             throttle = 0.0;
             self.speed.reset();
         }
-        self.apply(cfg, rudder, throttle, dt)
+        self.apply_with_floor(cfg, rudder, throttle, dt, floor)
     }
 
     /// Clamps and rate-limits a desired command, and remembers it.
@@ -326,8 +349,20 @@ impl Controller {
         throttle: f64,
         dt: f64,
     ) -> (f64, f64) {
+        self.apply_with_floor(cfg, rudder, throttle, dt, cfg.min_throttle_pct)
+    }
+
+    /// [`Self::apply`] with throttle clamped to `floor..=max_throttle_pct`.
+    pub fn apply_with_floor(
+        &mut self,
+        cfg: &ControlConfig,
+        rudder: f64,
+        throttle: f64,
+        dt: f64,
+        floor: f64,
+    ) -> (f64, f64) {
         let rudder = rudder.clamp(-cfg.max_rudder_rad, cfg.max_rudder_rad);
-        let throttle = throttle.clamp(cfg.min_throttle_pct, cfg.max_throttle_pct);
+        let throttle = throttle.clamp(floor.min(cfg.min_throttle_pct), cfg.max_throttle_pct);
         let dt = dt.max(0.0);
         self.rudder = slew(self.rudder, rudder, cfg.rudder_rate_rad_s * dt);
         self.throttle = slew(self.throttle, throttle, cfg.throttle_rate_pct_s * dt);
@@ -347,6 +382,14 @@ impl Controller {
     /// when avoidance demands it).
     pub fn cap_throttle(&mut self, max: f64) {
         self.throttle = self.throttle.min(max);
+    }
+
+    /// Moves the remembered throttle to `throttle` at once when that is less power either way
+    /// (ending an astern brake): taking power off is never rate-limited.
+    pub fn ease_throttle(&mut self, throttle: f64) {
+        if throttle.abs() < self.throttle.abs() {
+            self.throttle = throttle;
+        }
     }
 
     pub fn last(&self) -> (f64, f64) {

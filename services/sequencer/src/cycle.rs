@@ -102,7 +102,6 @@ pub struct Sequencer {
     runner: Runner,
     controller: Controller,
     last_cycle_ns: Option<u64>,
-    blocked_since_ns: Option<u64>,
 }
 
 impl Sequencer {
@@ -122,7 +121,6 @@ impl Sequencer {
             runner: Runner::new(cfg.control.max_speed_mps),
             controller: Controller::default(),
             last_cycle_ns: None,
-            blocked_since_ns: None,
             cfg,
         })
     }
@@ -265,7 +263,6 @@ impl Sequencer {
         let (mode, (rudder, throttle)) = match self.ins.filter(|_| stale == 0) {
             None => {
                 // The mission's state machine is frozen while inputs are stale.
-                self.blocked_since_ns = None;
                 (command_mode::SAFE_STOP, self.controller.stop(cfg, dt))
             }
             Some(ins) => {
@@ -295,7 +292,7 @@ impl Sequencer {
                     own.yaw,
                     exempt,
                 );
-                let moving = blocked_by_moving_contacts(
+                blocked.merge(blocked_by_contacts(
                     &self.arcs,
                     &self.contacts,
                     self.runner.followed_contact(),
@@ -303,10 +300,7 @@ impl Sequencer {
                     &mut self.moving,
                     &own,
                     now,
-                );
-                blocked.mask |= moving.mask;
-                blocked.port += moving.port;
-                blocked.starboard += moving.starboard;
+                ));
                 status.blocked_arcs = [blocked.mask as u64, (blocked.mask >> 64) as u64];
                 let guidance = match directive {
                     Directive::Idle | Directive::Hold => None,
@@ -335,14 +329,11 @@ impl Sequencer {
                     )),
                 };
                 match guidance {
-                    None => {
-                        self.blocked_since_ns = None;
-                        (command_mode::IDLE, self.controller.stop(cfg, dt))
-                    }
+                    None => (command_mode::IDLE, self.controller.stop(cfg, dt)),
                     Some(g) => {
                         status.goal = g.goal;
                         status.goal_distance_m = g.range_m;
-                        self.steer(&own, g, blocked, now, dt, &mut status)
+                        self.steer(&own, g, blocked, dt, &mut status)
                     }
                 }
             }
@@ -362,65 +353,86 @@ impl Sequencer {
     }
 
     /// Avoidance on top of the behaviour's guidance: the free arc closest to the desired course.
+    /// With every arc blocked somewhere, slow down along the arc that is free close in and closest to
+    /// the course; with none free close in, brake and turn away from the side with more obstacles.
     fn steer(
         &mut self,
         own: &OwnState,
         g: Guidance,
         blocked: Blocked,
-        now: u64,
         dt: f64,
         status: &mut SequencerStatus,
     ) -> (u8, (f64, f64)) {
         let cfg = &self.cfg.control;
         if g.speed_mps <= 0.0 {
             // Drifting on station: nothing to avoid.
-            self.blocked_since_ns = None;
             return (
                 command_mode::NAVIGATING,
                 self.controller.step(cfg, own, &g, dt),
             );
         }
         let bearing = angle_diff(g.heading, own.yaw);
-        match self.chooser.choose(&self.arcs, blocked.mask, bearing) {
-            Some(arc) => {
-                self.blocked_since_ns = None;
-                status.chosen_arc = arc as i32;
-                // The free arc nearest the goal: steer the exact course rather than the arc's
-                // quantized one. Otherwise steer along the chosen arc.
-                let heading = if arc == self.arcs.nearest(bearing) {
-                    g.heading
-                } else {
-                    own.yaw + self.arcs.arcs()[arc].direction
-                };
-                let g = Guidance { heading, ..g };
-                (
-                    command_mode::NAVIGATING,
-                    self.controller.step(cfg, own, &g, dt),
-                )
-            }
-            None => {
-                // Slow down at once, turn away from the side with more obstacles, stop if it lasts.
-                let since = *self.blocked_since_ns.get_or_insert(now);
-                let slow = now.saturating_sub(since) as f64 * 1e-9 < cfg.blocked_slow_s;
-                let throttle = if slow { cfg.blocked_throttle_pct } else { 0.0 };
-                let away = if blocked.port > blocked.starboard {
-                    -cfg.max_rudder_rad
-                } else {
-                    cfg.max_rudder_rad
-                };
-                self.controller.cap_throttle(throttle);
-                (
-                    command_mode::BLOCKED,
-                    self.controller.apply(cfg, away, throttle, dt),
-                )
-            }
+        if let Some(arc) = self.chooser.choose(&self.arcs, blocked.mask, bearing) {
+            status.chosen_arc = arc as i32;
+            // The free arc nearest the goal: steer the exact course rather than the arc's
+            // quantized one. Otherwise steer along the chosen arc.
+            let heading = if arc == self.arcs.nearest(bearing) {
+                g.heading
+            } else {
+                own.yaw + self.arcs.arcs()[arc].direction
+            };
+            let g = Guidance { heading, ..g };
+            return (
+                command_mode::NAVIGATING,
+                self.controller.step(cfg, own, &g, dt),
+            );
         }
+        if let Some(arc) = self.chooser.choose(&self.arcs, blocked.near, bearing) {
+            status.chosen_arc = arc as i32;
+            let speed_mps = g.speed_mps.min(cfg.blocked_speed_mps);
+            let g = Guidance {
+                heading: own.yaw + self.arcs.arcs()[arc].direction,
+                speed_mps,
+                ..g
+            };
+            // Power down to what holds the slow speed at once; the speed loop brakes from there.
+            self.controller
+                .cap_throttle(100.0 * (speed_mps / cfg.max_speed_mps).powi(2));
+            return (
+                command_mode::BLOCKED,
+                self.controller
+                    .step_with_floor(cfg, own, &g, dt, cfg.brake_throttle_pct),
+            );
+        }
+        // Brake to a stop at once and turn away from the side with more close obstacles.
+        let throttle = if own.speed_mps > BRAKE_UNTIL_MPS {
+            self.controller.cap_throttle(cfg.brake_throttle_pct);
+            cfg.brake_throttle_pct
+        } else {
+            self.controller.ease_throttle(0.0);
+            0.0
+        };
+        let away = if blocked.port > blocked.starboard {
+            -cfg.max_rudder_rad
+        } else {
+            cfg.max_rudder_rad
+        };
+        (
+            command_mode::BLOCKED,
+            self.controller
+                .apply_with_floor(cfg, away, throttle, dt, cfg.brake_throttle_pct),
+        )
     }
 }
 
-/// Arcs that would meet a moving contact where it will be (the map holds where it is now).
-/// Confirmed tracks only, not false alarms, not the contact being followed.
-fn blocked_by_moving_contacts(
+/// Braking astern stops below this speed (m/s): astern power on a stopped boat would back it up.
+const BRAKE_UNTIL_MPS: f64 = 0.3;
+
+/// Arcs that would meet a contact: a moving one where it will be (the map holds where it is now), a
+/// slow one where it is (the tracker may hold a buoy before the map confirms it at the arc
+/// threshold). Confirmed tracks only, not false alarms, not the contact being followed, not shore
+/// pieces larger than `contact_max_extent_m` (the map has those).
+fn blocked_by_contacts(
     arcs: &ArcSet,
     contacts: &ContactList,
     followed: Option<u32>,
@@ -444,19 +456,21 @@ fn blocked_by_moving_contacts(
                         (c.position[0] - e.centre[0]).hypot(c.position[1] - e.centre[1])
                             < e.radius_m
                     })
-                    && c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
+                    && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
             })
             .map(|c| {
+                let moving = c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps;
+                let velocity = if moving { c.velocity } else { [0.0; 2] };
                 // Two sigma of position, capped: a loose new track must not block everything.
                 let sigma = (c.covariance[0].max(c.covariance[5]) as f64)
                     .max(0.0)
                     .sqrt();
                 MovingObstacle {
                     position: [
-                        c.position[0] + c.velocity[0] * age,
-                        c.position[1] + c.velocity[1] * age,
+                        c.position[0] + velocity[0] * age,
+                        c.position[1] + velocity[1] * age,
                     ],
-                    velocity: c.velocity,
+                    velocity,
                     radius_m: 0.5 * (c.extent[0] as f64).hypot(c.extent[1] as f64)
                         + (2.0 * sigma).min(5.0),
                 }

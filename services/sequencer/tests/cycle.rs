@@ -111,42 +111,80 @@ fn obstacle_dead_ahead_turns_away() {
     );
 }
 
-#[test]
-fn everything_blocked_slows_stops_and_turns_away() {
+/// Cruising east at 10 m/s (the INS keeps saying 5 m/s), so the throttle is well up.
+fn cruising() -> (Sequencer, u64) {
     let mut seq = started(&EAST.replace("speed_mps = 5.0", "speed_mps = 10.0"));
-    // Get going first.
     for k in 1..=30 {
         feed(&mut seq, k * 100 * MS, &[]);
         seq.cycle("test");
     }
-    let cruising = seq.cycle("test").0.throttle_pct;
-    assert!(cruising > 15.0, "{cruising}");
+    let throttle = seq.cycle("test").0.throttle_pct;
+    assert!(throttle > 15.0, "{throttle}");
+    (seq, 31 * 100 * MS)
+}
+
+#[test]
+fn every_arc_blocked_further_out_slows_along_an_arc_free_close_in() {
+    let (mut seq, t0) = cruising();
+    // A wall across the whole view 25 m ahead: it cuts every arc, but none in its first 15 m.
+    let obstacles = wall(25.0);
+    let mut last = None;
+    for k in 0..20 {
+        feed(&mut seq, t0 + k * 100 * MS, &obstacles);
+        let (cmd, status) = seq.cycle("test");
+        assert_eq!(cmd.mode, command_mode::BLOCKED);
+        assert!((0..64).all(|a| status.arc_blocked(a)), "every arc blocked");
+        assert!(status.chosen_arc >= 0, "an arc free close in is taken");
+        if k == 0 {
+            assert!(
+                cmd.throttle_pct < 5.0,
+                "power cut at once: {}",
+                cmd.throttle_pct
+            );
+        }
+        last = Some(cmd);
+    }
+    let cmd = last.unwrap();
+    assert!(
+        cmd.throttle_pct < 0.0,
+        "5 m/s against 2 m/s asked: braking astern, {}",
+        cmd.throttle_pct
+    );
+    assert!(cmd.throttle_pct as f64 >= seq.config().control.brake_throttle_pct);
+}
+
+#[test]
+fn every_arc_blocked_close_in_brakes_and_turns_away() {
+    let (mut seq, t0) = cruising();
     // A wall close ahead, more of it to starboard (south) than to port.
     let mut obstacles = wall(6.0);
     obstacles.extend((0..20).map(|i| (3.0, -3.0 - i as f64 * 0.5)));
-    let t0 = 31 * 100 * MS;
     feed(&mut seq, t0, &obstacles);
     let (cmd, status) = seq.cycle("test");
     assert_eq!(cmd.mode, command_mode::BLOCKED);
     assert_eq!(status.chosen_arc, -1);
     assert!(status.arc_blocked(0) && status.arc_blocked(63));
-    assert!(
-        cmd.throttle_pct <= 15.0,
-        "slowed at once: {}",
-        cmd.throttle_pct
-    );
+    let brake = seq.config().control.brake_throttle_pct;
+    assert_eq!(cmd.throttle_pct as f64, brake, "full astern at once");
     let mut cmd = cmd;
     for k in 1..=40 {
         feed(&mut seq, t0 + k * 100 * MS, &obstacles);
         cmd = seq.cycle("test").0;
         assert_eq!(cmd.mode, command_mode::BLOCKED);
     }
-    assert_eq!(cmd.throttle_pct, 0.0, "stopped after blocked_slow_s");
     assert!(
         cmd.rudder_rad > 0.5,
         "hard to port, away from the starboard obstacles: {}",
         cmd.rudder_rad
     );
+    // Stopped: no more astern power, which would back the boat up.
+    let t1 = t0 + 41 * 100 * MS;
+    seq.on_ins(&ins(t1, 0.0, 0.1)).unwrap();
+    let (h, c) = map(t1, &obstacles);
+    seq.on_map(&h, &c).unwrap();
+    let cmd = seq.cycle("test").0;
+    assert_eq!(cmd.mode, command_mode::BLOCKED);
+    assert_eq!(cmd.throttle_pct, 0.0);
 }
 
 #[test]
@@ -274,4 +312,43 @@ fn a_boat_about_to_cross_ahead_blocks_the_course_the_empty_map_leaves_open() {
     feed(&mut seq, 100 * MS, &[]);
     seq.on_contacts(&tentative);
     assert_eq!(seq.cycle("test").1.blocked_arcs, [0, 0]);
+}
+
+#[test]
+fn a_buoy_the_tracker_holds_blocks_arcs_before_the_map_confirms_it() {
+    // The map has nothing yet at the arc threshold; the tracker has a buoy 20 m dead ahead.
+    let mut buoy = boat_contacts(100 * MS, [20.0, 0.0], [0.1, -0.1]);
+    buoy.contacts[0].class = contact_class::CHANNEL_MARKER;
+    buoy.contacts[0].extent = [1.0, 1.0, 1.0];
+    let mut seq = started(EAST);
+    feed(&mut seq, 100 * MS, &[]);
+    seq.on_contacts(&buoy);
+    let (cmd, status) = seq.cycle("test");
+    let straight = seq.arcs().nearest(0.0);
+    assert!(status.arc_blocked(straight), "straight arc {straight} free");
+    assert!(status.chosen_arc >= 0);
+    assert!(!status.arc_blocked(status.chosen_arc as usize));
+    assert_eq!(cmd.mode, command_mode::NAVIGATING);
+
+    // The tracker's false alarms steer nothing.
+    let mut false_alarm = buoy;
+    false_alarm.contacts[0].class = contact_class::FALSE_ALARM;
+    let mut seq = started(EAST);
+    feed(&mut seq, 100 * MS, &[]);
+    seq.on_contacts(&false_alarm);
+    assert_eq!(seq.cycle("test").1.blocked_arcs, [0, 0]);
+}
+
+#[test]
+fn a_shore_sized_contact_is_left_to_the_map_whatever_its_velocity() {
+    // A 20 x 34 m blob of bank, "moving" at 6 m/s as it changes shape, across our course.
+    let mut bank = boat_contacts(100 * MS, [25.0, -25.0], [0.0, 6.0]);
+    bank.contacts[0].class = contact_class::EXTENDED;
+    bank.contacts[0].extent = [20.0, 34.0, 3.0];
+    let mut seq = started(EAST);
+    feed(&mut seq, 100 * MS, &[]);
+    seq.on_contacts(&bank);
+    let (cmd, status) = seq.cycle("test");
+    assert_eq!(status.blocked_arcs, [0, 0]);
+    assert_eq!(cmd.mode, command_mode::NAVIGATING);
 }
