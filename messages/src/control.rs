@@ -7,7 +7,8 @@ pub mod command_mode {
     pub const NAVIGATING: u8 = 1;
     /// The watchdog found map, contacts or INS stale: throttle is 0.
     pub const SAFE_STOP: u8 = 2;
-    /// No traversable arc: slowing, stopping or turning away.
+    /// No arc free along its whole length: slowing along the arc free close in (`chosen_arc` set),
+    /// or, with none, braking and turning away (`chosen_arc` -1).
     pub const BLOCKED: u8 = 3;
 }
 
