@@ -274,7 +274,12 @@ impl ArcSet {
             for n in 0..=steps {
                 let s = arc.extent_m * n as f64 / steps as f64;
                 let radius = corridor_half_width(cfg, resolution, s);
-                set.stamp_disc(Arc::point(arc.curvature, s), radius, 1u128 << a, s <= cfg.near_m);
+                set.stamp_disc(
+                    Arc::point(arc.curvature, s),
+                    radius,
+                    1u128 << a,
+                    s <= cfg.near_m,
+                );
             }
         }
         Ok(set)
