@@ -188,3 +188,17 @@ fn bridge_pylon_passage_closed_loop() {
     assert!(clearance_to(&r, "pylon") > 2.0, "{:#}", r["behaviour"]);
     assert!(r["behaviour"]["waypoints_reached"].as_u64().unwrap() >= 1);
 }
+
+/// The buoy field: a 90 m river between wooded banks, three buoys, moored boats and traffic. Every
+/// 40 m arc meets a bank or a contact whenever the boat points across the river, so this run
+/// exercises the slow-down along an arc free close in; before it, the boat turned into buoy 2.
+#[test]
+fn cluttered_river_buoy_field_closed_loop() {
+    let _guard = serial();
+    let r = closed_loop("cluttered_river", "60", &[]);
+    assert_working(&r);
+    assert_eq!(r["behaviour"]["collision"], false, "{:#}", r["behaviour"]);
+    let buoys = clearance_to(&r, "buoy");
+    assert!(buoys > 2.0, "too close to a buoy: {buoys} m");
+    assert!(r["behaviour"]["waypoints_reached"].as_u64().unwrap() >= 1);
+}
