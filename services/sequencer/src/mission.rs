@@ -389,8 +389,8 @@ struct Lock {
 }
 
 /// A followed target whose track broke (the tracker lost it for a moment and gave it a new id) is
-/// taken up again by the confirmed, not-false-alarm contact nearest to where the lost one was
-/// predicted to be, if one is this close (m) ...
+/// taken up again by the confirmed contact nearest to where the lost one was predicted to be, if
+/// one is this close (m) ...
 const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows) ...
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
@@ -398,8 +398,16 @@ const REACQUIRE_GROWTH_MPS: f64 = 2.0;
 /// water nearby stands still; a duplicate's junk velocity is far off.
 const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
 /// Among those, the best has the least distance plus this many seconds times the velocity
-/// difference.
+/// difference ...
 const REACQUIRE_VELOCITY_WEIGHT_S: f64 = 3.0;
+/// ... plus this many metres for a contact the classifier calls a false alarm. A boat moving away
+/// at speed maps as a small blob (the world map confirms the cells it stays in), which the
+/// classifier often calls a false alarm; its motion is the better witness, so the class only
+/// breaks ties.
+const REACQUIRE_FALSE_ALARM_PENALTY_M: f64 = 10.0;
+/// Tracks this close (m) to the own boat are never the target: they are its own wake and spray,
+/// which move with it and so, while it follows at the target's speed, like the target.
+const REACQUIRE_MIN_OWN_RANGE_M: f64 = 10.0;
 
 impl Lock {
     /// Seconds since the target was last seen, at `stamp_ns`.
@@ -416,25 +424,45 @@ impl Lock {
         ]
     }
 
-    /// The contact that continues this lock: the same id (unless the tracker now calls it a false
-    /// alarm), or a new track where the target went.
-    fn find<'a>(&self, contacts: &'a [Contact], stamp_ns: u64) -> Option<&'a Contact> {
+    /// Velocity difference (m/s) between a contact and the target as last seen.
+    fn velocity_gap(&self, c: &Contact) -> f64 {
+        (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
+    }
+
+    /// The contact that continues this lock: the same id while it still moves like the target
+    /// (whatever the classifier now calls it), or a new track where the target went, moving like
+    /// it and not hanging on the own boat at `own`.
+    fn find<'a>(
+        &self,
+        contacts: &'a [Contact],
+        stamp_ns: u64,
+        own: [f64; 2],
+    ) -> Option<&'a Contact> {
         if let Some(c) = contacts.iter().find(|c| c.id == self.id) {
-            if c.class != contact_class::FALSE_ALARM {
+            if c.class != contact_class::FALSE_ALARM
+                || self.velocity_gap(c) <= REACQUIRE_VELOCITY_MPS
+            {
                 return Some(c);
             }
         }
         let p = self.predicted(stamp_ns);
         let gate = REACQUIRE_RADIUS_M + REACQUIRE_GROWTH_MPS * self.unseen_s(stamp_ns);
         let d = |c: &Contact| (c.position[0] - p[0]).hypot(c.position[1] - p[1]);
-        let dv = |c: &Contact| {
-            (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
+        let score = |c: &Contact| {
+            let penalty = if c.class == contact_class::FALSE_ALARM {
+                REACQUIRE_FALSE_ALARM_PENALTY_M
+            } else {
+                0.0
+            };
+            d(c) + REACQUIRE_VELOCITY_WEIGHT_S * self.velocity_gap(c) + penalty
         };
-        let score = |c: &Contact| d(c) + REACQUIRE_VELOCITY_WEIGHT_S * dv(c);
+        let off_own = |c: &Contact| {
+            (c.position[0] - own[0]).hypot(c.position[1] - own[1]) >= REACQUIRE_MIN_OWN_RANGE_M
+        };
         contacts
             .iter()
-            .filter(|c| c.confirmed == 1 && c.class != contact_class::FALSE_ALARM)
-            .filter(|c| d(c) <= gate && dv(c) <= REACQUIRE_VELOCITY_MPS)
+            .filter(|c| c.confirmed == 1 && off_own(c))
+            .filter(|c| d(c) <= gate && self.velocity_gap(c) <= REACQUIRE_VELOCITY_MPS)
             .min_by(|a, b| score(a).total_cmp(&score(b)).then(a.id.cmp(&b.id)))
     }
 }
@@ -686,7 +714,9 @@ impl Runner {
                     return None;
                 }
                 let found = match (self.lock, contact_id, class) {
-                    (Some(lock), _, _) => lock.find(world.contacts, world.contacts_stamp_ns),
+                    (Some(lock), _, _) => {
+                        lock.find(world.contacts, world.contacts_stamp_ns, own.position)
+                    }
                     (None, Some(id), _) => world.contacts.iter().find(|c| c.id == *id),
                     (None, None, Some(class)) => {
                         let class = class_by_name(class)?;
@@ -1034,6 +1064,67 @@ mod tests {
         assert!(matches!(r.update(4 * S, &w), Directive::Follow { .. }));
         assert_eq!(r.update(14 * S, &w), Directive::Idle);
         assert!(matches!(r.state(), RunState::Failed(why) if why.contains("lost")));
+    }
+
+    #[test]
+    fn following_trusts_motion_over_the_class_and_never_takes_its_own_wake() {
+        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
+            .unwrap();
+        let mut r = Runner::new(10.0);
+        r.load(m);
+        let track = |id, class, x: f64, vx: f64| Contact {
+            id,
+            class,
+            confirmed: 1,
+            position: [x, 0.0],
+            velocity: [vx, 0.0],
+            ..Default::default()
+        };
+        let mut at = |t: u64, own_x: f64, contacts: &[Contact]| {
+            let w = World {
+                own: OwnState {
+                    position: [own_x, 0.0],
+                    ..Default::default()
+                },
+                contacts,
+                contacts_stamp_ns: t,
+            };
+            let d = r.update(t, &w);
+            (d, r.step_name())
+        };
+        // Locked on boat #3, 20 m ahead, both at 7 m/s.
+        let (_, name) = at(S, 0.0, &[track(3, contact_class::BOAT, 20.0, 7.0)]);
+        assert_eq!(name, "follow #3");
+        // The classifier now calls it a false alarm, but it still moves like the target: kept.
+        let (_, name) = at(
+            2 * S,
+            7.0,
+            &[track(3, contact_class::FALSE_ALARM, 27.0, 7.0)],
+        );
+        assert_eq!(name, "follow #3");
+        // The track breaks. A track on the own boat's wake, 6 m off and moving with it at 7 m/s, is
+        // within the gate and moves like the target: never taken. The target's new track is
+        // taken even though the classifier calls it a false alarm.
+        let (_, name) = at(
+            3 * S,
+            14.0,
+            &[
+                track(8, contact_class::BOAT, 20.0, 7.0),
+                track(9, contact_class::FALSE_ALARM, 35.0, 7.2),
+            ],
+        );
+        assert_eq!(name, "follow #9");
+        // A false alarm that stands still where the target went is not the target: it stays lost.
+        let (d, name) = at(
+            4 * S,
+            21.0,
+            &[track(12, contact_class::FALSE_ALARM, 42.0, 0.0)],
+        );
+        assert_eq!(name, "follow #9");
+        assert!(
+            matches!(d, Directive::Follow { position, .. } if (position[0] - 42.2).abs() < 1e-9),
+            "followed where #9 is predicted: {d:?}"
+        );
     }
 
     #[test]
