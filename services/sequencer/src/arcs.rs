@@ -8,7 +8,7 @@
 //! it. Reasons:
 //! - a heading-bin table quantizes heading: with 64 bins (5.6 deg) a point 40 m out moves up to 3.9 m
 //!   sideways, so every corridor would need that much extra margin; rotation is exact;
-//! - one table of 128-bit masks is ~0.5 MB (fits in L2); 64 of them would be ~40 MB;
+//! - one table of two 128-bit masks per cell (whole arc, first `near_m`) is ~1 MB; 64 of them would be ~70 MB;
 //! - the per-cycle cost stays one pass over the map: the pass only tests each cell's cost and
 //!   hazard (cheap, branch-predictable), and the rotation plus table lookup runs only for the few
 //!   cells that are hazards ([`ArcSet::collect_hazards`] then [`ArcSet::blocked`]).
@@ -225,10 +225,10 @@ pub struct ArcSet {
     /// Table cells from the vessel to each edge; the table is `2 * half` cells square.
     half: i32,
     side: usize,
-    /// Body-frame cell -> arcs whose corridor covers it. Row-major over (y, x).
-    lut: Vec<u128>,
-    /// The same for the first [`ArcConfig::near_m`] of each arc.
-    lut_near: Vec<u128>,
+    /// Body-frame cell -> arcs whose corridor covers it, and (second mask) those that cover it
+    /// within their first [`ArcConfig::near_m`]. Row-major over (y, x); both masks of a cell share
+    /// one cache line, so a hazard costs one memory access.
+    lut: Vec<[u128; 2]>,
     /// Largest distance from the vessel at which any corridor reaches (m).
     reach: f64,
     hazard_u8: u8,
@@ -262,8 +262,7 @@ impl ArcSet {
             inv_resolution: 1.0 / resolution,
             half,
             side,
-            lut: vec![0; side * side],
-            lut_near: vec![0; side * side],
+            lut: vec![[0; 2]; side * side],
             reach,
             hazard_u8: (cfg.hazard_threshold * 255.0).ceil().clamp(0.0, 255.0) as u8,
         };
@@ -295,9 +294,9 @@ impl ArcSet {
                 let x = (i - self.half) as f64 * r + 0.5 * r;
                 if (x - centre[0]).powi(2) + (y - centre[1]).powi(2) <= radius * radius {
                     let k = j as usize * self.side + i as usize;
-                    self.lut[k] |= bit;
+                    self.lut[k][0] |= bit;
                     if near {
-                        self.lut_near[k] |= bit;
+                        self.lut[k][1] |= bit;
                     }
                 }
             }
@@ -345,12 +344,12 @@ impl ArcSet {
 
     /// Arcs whose corridor covers the body-frame point (x forward, y left).
     pub fn arcs_at(&self, body: [f64; 2]) -> u128 {
-        self.table_index(body).map_or(0, |k| self.lut[k])
+        self.table_index(body).map_or(0, |k| self.lut[k][0])
     }
 
     /// Arcs whose corridor covers the body-frame point within their first `near_m`.
     pub fn near_arcs_at(&self, body: [f64; 2]) -> u128 {
-        self.table_index(body).map_or(0, |k| self.lut_near[k])
+        self.table_index(body).map_or(0, |k| self.lut[k][1])
     }
 
     /// The one pass over the map: appends the east/north offsets (m, from the grid centre, which is
@@ -448,8 +447,8 @@ impl ArcSet {
             let Some(k) = self.table_index(body) else {
                 continue;
             };
-            out.mask |= self.lut[k];
-            let near = self.lut_near[k];
+            let [all, near] = self.lut[k];
+            out.mask |= all;
             if near != 0 {
                 out.near |= near;
                 if body[1] > 0.0 {
