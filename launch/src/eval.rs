@@ -169,6 +169,13 @@ fn eval_scenario(
         let started = Instant::now();
         let mut metrics = Metrics::default();
         let mut obs = Observation::new(goal);
+        if args.closed_loop {
+            // Tracks on the scenario's shore are shore contacts, not false tracks.
+            let world = sim::scenario::load_world(scenario)?;
+            if let Some(land) = crate::eval_tracking::TrackingScore::land_of(world) {
+                obs.tracking.set_land(land);
+            }
+        }
         // Truth images and disparities by stamp until their partner arrives (the simulator renders
         // truth after publishing the frame, so either may come first).
         let mut truths: BTreeMap<u64, Vec<f32>> = BTreeMap::new();
@@ -446,7 +453,7 @@ fn print_report(r: &serde_json::Value) {
         );
         let t = &b["tracking"];
         println!(
-            "tracking: boats within 100 m detected {} of {} frames, markers/buoys within 60 m {} of {}, confirmed tracks {} ({} false, {}/min), moving-boat speed error p50 {} %, heading error p50 {} deg, along/cross 3-sigma ratio {}",
+            "tracking: boats within 100 m detected {} of {} frames, markers/buoys within 60 m {} of {}, confirmed tracks {} ({} false, {}/min; {} on the shore), moving-boat speed error p50 {} %, heading error p50 {} deg, along/cross 3-sigma ratio {}",
             t["boats_within_100m"]["detected"],
             t["boats_within_100m"]["frames"],
             t["markers_within_60m"]["detected"],
@@ -454,6 +461,7 @@ fn print_report(r: &serde_json::Value) {
             t["confirmed_tracks"],
             t["false_tracks"],
             f(&t["false_tracks_per_min"], 1.0),
+            t["shore_tracks"],
             f(&t["moving_speed_error_pct"]["p50"], 1.0),
             f(&t["moving_heading_error_deg"]["p50"], 1.0),
             f(&t["along_cross_3sigma_ratio"], 1.0),

@@ -16,6 +16,11 @@ const RANGE_BINS_M: [f64; 5] = [25.0, 50.0, 100.0, 200.0, 400.0];
 const LENGTH_BINS: [f64; 4] = [5.0, 10.0, 20.0, 40.0];
 /// Truth lists kept to meet their contact list (the observer may read a newer truth first).
 const TRUTHS_KEPT: usize = 8;
+/// A track this close to land (m) lies on the shore: a bank seen by stereo starts at the water's
+/// edge, below the land test's height.
+const SHORE_MARGIN_M: f64 = 3.0;
+/// Land above the water by more than this (m) is shore.
+const SHORE_HEIGHT_M: f64 = 0.3;
 /// Classes scored: what the tracker is meant to report.
 const SCORED: [u8; 4] = [
     truth_class::BOAT,
@@ -42,6 +47,9 @@ impl Counts {
     }
 }
 
+/// Whether an ENU point is land (the scenario's terrain above the water).
+pub type LandTest = Box<dyn Fn(f64, f64) -> bool>;
+
 #[derive(Default)]
 pub struct TrackingScore {
     truths: BTreeMap<u64, Box<GroundTruth>>,
@@ -54,12 +62,30 @@ pub struct TrackingScore {
     markers_60m: Counts,
     confirmed_ids: BTreeSet<u32>,
     matched_ids: BTreeSet<u32>,
+    /// Where the scenario has shore: confirmed tracks seen on it, which are shore contacts (the
+    /// classifier's "extended"), not false tracks.
+    land: Option<LandTest>,
+    shore_ids: BTreeSet<u32>,
     speed_errors_pct: Vec<f64>,
     heading_errors_deg: Vec<f64>,
     along_cross: AlongCross,
 }
 
 impl TrackingScore {
+    /// Scores tracks on land as shore contacts from now on.
+    pub fn set_land(&mut self, land: LandTest) {
+        self.land = Some(land);
+    }
+
+    /// A scenario's land test: its terrain more than [`SHORE_HEIGHT_M`] above its water level.
+    /// `None` for scenarios without water or terrain.
+    pub fn land_of(world: sim::World) -> Option<LandTest> {
+        (world.water_level.is_some() && world.terrain.is_some()).then(|| {
+            Box::new(move |x: f64, y: f64| world.land_height(x, y, SHORE_HEIGHT_M).is_some())
+                as LandTest
+        })
+    }
+
     pub fn on_truth(&mut self, truth: &GroundTruth) {
         self.truths.insert(truth.hdr.stamp_ns, Box::new(*truth));
         while self.truths.len() > TRUTHS_KEPT {
@@ -110,17 +136,33 @@ impl TrackingScore {
                 self.heading_errors_deg.push(heading.to_degrees().abs());
             }
         }
-        self.confirmed_ids.extend(
-            list.as_slice()
-                .iter()
-                .filter(|c| c.confirmed == 1)
-                .map(|c| c.id),
-        );
+        for c in list.as_slice().iter().filter(|c| c.confirmed == 1) {
+            self.confirmed_ids.insert(c.id);
+            if let Some(land) = &self.land {
+                let [x, y] = c.position;
+                let m = SHORE_MARGIN_M;
+                let near_land = [(0.0, 0.0), (m, 0.0), (-m, 0.0), (0.0, m), (0.0, -m)]
+                    .iter()
+                    .any(|&(dx, dy)| land(x + dx, y + dy));
+                if near_land {
+                    self.shore_ids.insert(c.id);
+                }
+            }
+        }
     }
 
-    /// Confirmed tracks that never came within the gate of a scored true object.
+    /// Confirmed tracks that never came within the gate of a scored true object nor lay on the
+    /// shore.
     pub fn false_tracks(&self) -> usize {
-        self.confirmed_ids.difference(&self.matched_ids).count()
+        self.confirmed_ids
+            .iter()
+            .filter(|id| !self.matched_ids.contains(id) && !self.shore_ids.contains(id))
+            .count()
+    }
+
+    /// Confirmed tracks on the shore that never met a scored true object.
+    pub fn shore_tracks(&self) -> usize {
+        self.shore_ids.difference(&self.matched_ids).count()
     }
 
     pub fn report(&self, scenario_minutes: f64) -> serde_json::Value {
@@ -142,6 +184,7 @@ impl TrackingScore {
             "by_range_lengths": bins(&self.by_lengths, &LENGTH_BINS, "object lengths"),
             "confirmed_tracks": self.confirmed_ids.len(),
             "false_tracks": self.false_tracks(),
+            "shore_tracks": self.land.as_ref().map(|_| self.shore_tracks()),
             "false_tracks_per_min": (scenario_minutes > 0.0)
                 .then(|| self.false_tracks() as f64 / scenario_minutes),
             "moving_speed_error_pct": {"p50": median(&self.speed_errors_pct),
@@ -239,5 +282,27 @@ mod tests {
             .find(|b| b["class"] == "boat")
             .unwrap();
         assert_eq!(boat_lengths["below"], 10.0);
+        assert!(r["shore_tracks"].is_null(), "no land test, no shore figure");
+    }
+
+    #[test]
+    fn a_track_on_the_shore_is_a_shore_contact_not_a_false_track() {
+        let mut s = TrackingScore::default();
+        // Land west of x = -50.
+        s.set_land(Box::new(|x, _| x < -50.0));
+        s.on_truth(&truth(7));
+        let mut list = ContactList {
+            hdr: Header::new(0, 7, "tracker"),
+            count: 3,
+            ..Default::default()
+        };
+        list.contacts[0] = contact(10, [1.0, 40.0], [4.8, 0.0]); // the boat
+        list.contacts[1] = contact(11, [-48.0, 10.0], [0.0, 0.0]); // the bank, 2 m off the land
+        list.contacts[2] = contact(12, [60.0, -60.0], [0.0, 0.0]); // open water, nothing there
+        s.on_contacts(&list);
+        let r = s.report(1.0);
+        assert_eq!(r["confirmed_tracks"], 3);
+        assert_eq!(r["shore_tracks"], 1);
+        assert_eq!(r["false_tracks"], 1);
     }
 }

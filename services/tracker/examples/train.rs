@@ -107,13 +107,10 @@ fn print_confusion(model: &tracker::Model, samples: &[(Detection, u8)]) {
 }
 
 fn shore_test(world: &World) -> anyhow::Result<impl Fn(f64, f64) -> Option<f64> + '_> {
-    let level = world
+    world
         .water_level
-        .context("the scenario has no water level (not maritime)")? as f64;
-    Ok(move |x: f64, y: f64| {
-        let h = world.ground_at(x, y).0 - level;
-        (h > SHORE_HEIGHT_M).then_some(h)
-    })
+        .context("the scenario has no water level (not maritime)")?;
+    Ok(move |x: f64, y: f64| world.land_height(x, y, SHORE_HEIGHT_M))
 }
 
 /// Examples from recorded world maps: `dir/<scenario>/run.mcap` for scenarios of `scenarios`.

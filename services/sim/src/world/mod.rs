@@ -96,6 +96,13 @@ impl World {
         Ok(())
     }
 
+    /// Height of the land above the water at (x, y) where it rises more than `min_m` above it;
+    /// `None` on water, and everywhere in a world without a water level.
+    pub fn land_height(&self, x: f64, y: f64, min_m: f64) -> Option<f64> {
+        let h = self.ground_at(x, y).0 - self.water_level? as f64;
+        (h > min_m).then_some(h)
+    }
+
     /// Ground (or water) height and up-normal at (x, y), for placing vehicles and objects.
     pub fn ground_at(&self, x: f64, y: f64) -> (f64, [f64; 3]) {
         let (xf, yf) = (x as f32, y as f32);
