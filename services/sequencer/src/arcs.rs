@@ -8,7 +8,8 @@
 //! it. Reasons:
 //! - a heading-bin table quantizes heading: with 64 bins (5.6 deg) a point 40 m out moves up to 3.9 m
 //!   sideways, so every corridor would need that much extra margin; rotation is exact;
-//! - one table of two 128-bit masks per cell (whole arc, first `near_m`) is ~1 MB; 64 of them would be ~70 MB;
+//! - one table of two 128-bit masks per cell (whole arc, first `near_m`) is ~1.4 MB at 0.5 m; one
+//!   per heading bin (64) would be ~90 MB;
 //! - the per-cycle cost stays one pass over the map: the pass only tests each cell's cost and
 //!   hazard (cheap, branch-predictable), and the rotation plus table lookup runs only for the few
 //!   cells that are hazards ([`ArcSet::collect_hazards`] then [`ArcSet::blocked`]).
@@ -226,8 +227,8 @@ pub struct ArcSet {
     half: i32,
     side: usize,
     /// Body-frame cell -> arcs whose corridor covers it, and (second mask) those that cover it
-    /// within their first [`ArcConfig::near_m`]. Row-major over (y, x); both masks of a cell share
-    /// one cache line, so a hazard costs one memory access.
+    /// within their first [`ArcConfig::near_m`]. Row-major over (y, x); both masks of a cell sit
+    /// side by side, so a hazard costs one lookup.
     lut: Vec<[u128; 2]>,
     /// Largest distance from the vessel at which any corridor reaches (m).
     reach: f64,
@@ -345,11 +346,6 @@ impl ArcSet {
     /// Arcs whose corridor covers the body-frame point (x forward, y left).
     pub fn arcs_at(&self, body: [f64; 2]) -> u128 {
         self.table_index(body).map_or(0, |k| self.lut[k][0])
-    }
-
-    /// Arcs whose corridor covers the body-frame point within their first `near_m`.
-    pub fn near_arcs_at(&self, body: [f64; 2]) -> u128 {
-        self.table_index(body).map_or(0, |k| self.lut[k][1])
     }
 
     /// The one pass over the map: appends the east/north offsets (m, from the grid centre, which is

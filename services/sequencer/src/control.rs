@@ -166,6 +166,11 @@ impl ControlConfig {
         }
         Ok(())
     }
+
+    /// Throttle that holds `speed` (m/s) in steady state: speed ~ sqrt(throttle).
+    pub fn throttle_for_speed(&self, speed: f64) -> f64 {
+        100.0 * (speed / self.max_speed_mps).powi(2)
+    }
 }
 
 /// What the behaviour wants: a course and a speed over ground, and the goal they lead to.
@@ -332,7 +337,7 @@ impl Controller {
         let rudder = self.heading.step(&hg, err, -own.yaw_rate, dt);
         // Do not race off while pointing the wrong way.
         let speed = g.speed_mps * err.cos().clamp(0.2, 1.0);
-        let feed_forward = 100.0 * (speed / cfg.max_speed_mps).powi(2);
+        let feed_forward = cfg.throttle_for_speed(speed);
         let mut throttle = feed_forward + self.speed.step(&sg, speed - own.speed_mps, 0.0, dt);
         if g.speed_mps <= 0.0 {
             throttle = 0.0;

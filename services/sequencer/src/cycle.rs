@@ -397,7 +397,7 @@ impl Sequencer {
             };
             // Power down to what holds the slow speed at once; the speed loop brakes from there.
             self.controller
-                .cap_throttle(100.0 * (speed_mps / cfg.max_speed_mps).powi(2));
+                .cap_throttle(cfg.throttle_for_speed(speed_mps));
             return (
                 command_mode::BLOCKED,
                 self.controller
