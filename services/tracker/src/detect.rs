@@ -1,8 +1,14 @@
 //! Contact detection: components of cells whose hazard is at or above a threshold (cells within
 //! `link_cells` of each other in both axes are linked; 1 is 8-connectivity), with the shape features
 //! the classifier uses. A boat far out gives sparse cells with gaps; linking across a gap keeps it
-//! one detection instead of several that each grow a track with a junk velocity. Buffers are kept between maps (no allocation once they
-//! have grown to the map size).
+//! one detection instead of several that each grow a track with a junk velocity.
+//!
+//! Guided detection: the world map confirms a cell only after several frames of evidence, so a boat
+//! that moves its own length in that time maps as a sliver. Where the tracker expects a confirmed
+//! track ([`Detector::guide`]), cells join components from a lower hazard, so the evidence of the
+//! last frames, spread along the boat's path, still forms one detection. Elsewhere the threshold,
+//! and so the rejection of one-frame stereo noise, is unchanged. Buffers are kept between maps (no
+//! allocation once they have grown to the map size).
 
 use messages::{GridGeometry, MapCell};
 
@@ -42,11 +48,60 @@ pub struct Detector {
     label: Vec<u32>,
     stack: Vec<u32>,
     pass: u32,
+    /// Cells marked with `guide_pass` lie in a guide window of the next `detect`.
+    guide_mark: Vec<u32>,
+    guide_pass: u32,
+    guided_threshold: u8,
+    guided: bool,
 }
 
 impl Detector {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Lowers the threshold of the next [`Detector::detect`] to `threshold` inside the discs
+    /// (ENU centre, radius in m) of `grid`. Applies to that one call only.
+    pub fn guide(
+        &mut self,
+        grid: &GridGeometry,
+        threshold: u8,
+        discs: impl IntoIterator<Item = ([f64; 2], f64)>,
+    ) {
+        let (w, h) = (grid.width as usize, grid.height as usize);
+        if self.guide_mark.len() != w * h {
+            self.guide_mark.clear();
+            self.guide_mark.resize(w * h, 0);
+            self.guide_pass = 0;
+        }
+        self.guide_pass = self.guide_pass.wrapping_add(1).max(1);
+        self.guided_threshold = threshold;
+        self.guided = true;
+        let r = grid.resolution_m;
+        let west = grid.center[0] - w as f64 / 2.0 * r;
+        let south = grid.center[1] - h as f64 / 2.0 * r;
+        for ([x, y], radius) in discs {
+            if !(x.is_finite() && y.is_finite() && radius.is_finite() && radius >= 0.0) {
+                continue;
+            }
+            // Cell index range of the disc's bounding box, clamped to the grid.
+            let span = |lo: f64, hi: f64, n: usize| {
+                let a = (lo / r).floor().max(0.0);
+                let b = ((hi / r).floor() + 1.0).min(n as f64);
+                (a as usize, b.max(a) as usize)
+            };
+            let (c0, c1) = span(x - radius - west, x + radius - west, w);
+            let (r0, r1) = span(y - radius - south, y + radius - south, h);
+            for row in r0..r1 {
+                let cy = south + (row as f64 + 0.5) * r;
+                for col in c0..c1 {
+                    let cx = west + (col as f64 + 0.5) * r;
+                    if (cx - x).hypot(cy - y) <= radius {
+                        self.guide_mark[row * w + col] = self.guide_pass;
+                    }
+                }
+            }
+        }
     }
 
     /// Appends the components of `cells` (row-major over `grid`) to `out` (cleared first), in
@@ -76,9 +131,17 @@ impl Detector {
         self.pass = self.pass.wrapping_add(1).max(1);
         let pass = self.pass;
         let thr = threshold.max(1);
+        // Guide windows (one-shot): cells marked for this call join from the lower threshold.
+        let guided = std::mem::take(&mut self.guided) && self.guide_mark.len() == w * h;
+        let (marks, mark) = (&self.guide_mark, self.guide_pass);
+        let gthr = self.guided_threshold.clamp(1, thr);
+        let on = |i: usize| {
+            let hz = cells[i].hazard;
+            hz >= thr || (guided && hz >= gthr && marks[i] == mark)
+        };
         let r = grid.resolution_m;
         for start in 0..w * h {
-            if cells[start].hazard < thr || self.label[start] == pass {
+            if !on(start) || self.label[start] == pass {
                 continue;
             }
             self.stack.clear();
@@ -115,7 +178,7 @@ impl Detector {
                             continue;
                         }
                         let j = ny as usize * w + nx as usize;
-                        if cells[j].hazard >= thr && self.label[j] != pass {
+                        if on(j) && self.label[j] != pass {
                             self.label[j] = pass;
                             self.stack.push(j as u32);
                         }
@@ -209,5 +272,44 @@ mod tests {
         d.detect(&grid, &cells, &params(1, 1, 16, 6), &mut out);
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].cells, 11);
+    }
+
+    #[test]
+    fn guide_windows_lower_the_threshold_once_and_only_inside() {
+        let grid = GridGeometry {
+            width: 40,
+            height: 20,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        // Two equal strips of one-frame evidence (hazard 85 of 255, below the 128 threshold):
+        // a boat's path near (-5, 0) and sun glint near (5, 0).
+        let mut cells = vec![MapCell::default(); 800];
+        for x in [8usize, 9, 10, 11, 12, 28, 29, 30, 31, 32] {
+            cells[10 * 40 + x].hazard = 85;
+        }
+        let params = DetectParams {
+            threshold: 128,
+            min_cells: 1,
+            max: 16,
+            link_cells: 1,
+        };
+        let mut d = Detector::new();
+        let mut out = Vec::new();
+        d.detect(&grid, &cells, &params, &mut out);
+        assert!(out.is_empty());
+        // A track is expected at the west strip: it is detected whole, the east one is not.
+        d.guide(&grid, 64, [([-5.0, 0.0], 3.0)]);
+        d.detect(&grid, &cells, &params, &mut out);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].cells, 5);
+        assert!((out[0].position[0] + 4.75).abs() < 1e-9, "{:?}", out[0]);
+        // The guide applied to that one call.
+        d.detect(&grid, &cells, &params, &mut out);
+        assert!(out.is_empty());
+        // A guided threshold above the strip's evidence finds nothing either.
+        d.guide(&grid, 100, [([-5.0, 0.0], 3.0)]);
+        d.detect(&grid, &cells, &params, &mut out);
+        assert!(out.is_empty());
     }
 }

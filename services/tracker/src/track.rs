@@ -18,6 +18,11 @@ use serde::Deserialize;
 pub struct TrackerConfig {
     /// Cells with hazard >= this (0..=255) form detections.
     pub hazard_threshold: u8,
+    /// Around a confirmed track's predicted position, cells with hazard >= this already form
+    /// detections (see `detect`'s guided detection); equal to `hazard_threshold` turns it off.
+    pub guided_hazard_threshold: u8,
+    /// The guide window reaches this far (m) beyond half a track's diagonal extent.
+    pub guide_margin_m: f64,
     /// Smallest component kept (cells).
     pub min_cells: u32,
     /// Hazard cells closer than this (m) belong to one component (0.5 m cells: 0.5 = 8-connected).
@@ -60,6 +65,9 @@ impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             hazard_threshold: 128,
+            // A cell with full hazard in one of the last three local maps averages 85.
+            guided_hazard_threshold: 64,
+            guide_margin_m: 3.0,
             min_cells: 1,
             link_m: 0.5,
             max_detections: 256,
@@ -159,6 +167,12 @@ impl Tracker {
         if !(cfg.link_m > 0.0 && cfg.link_m <= 10.0) {
             return bad("link_m must be within (0, 10]");
         }
+        if cfg.guided_hazard_threshold > cfg.hazard_threshold {
+            return bad("guided_hazard_threshold must not exceed hazard_threshold");
+        }
+        if !(cfg.guide_margin_m.is_finite() && (0.0..=20.0).contains(&cfg.guide_margin_m)) {
+            return bad("guide_margin_m must be within [0, 20]");
+        }
         if model.validate().is_err() {
             return bad("contact model is invalid");
         }
@@ -218,15 +232,26 @@ impl Tracker {
         let dt = self.last_stamp.map_or(0.0, |p| (stamp - p) as f64 * 1e-9);
         self.last_stamp = Some(stamp);
 
+        for t in &mut self.tracks {
+            predict(t, dt, self.cfg.accel_sigma);
+        }
+        let margin = self.cfg.guide_margin_m;
+        self.detector.guide(
+            &g,
+            self.cfg.guided_hazard_threshold,
+            self.tracks.iter().filter(|t| t.confirmed).map(|t| {
+                // Half the diagonal, capped: a bank-sized track must not lower the threshold
+                // over a whole shore.
+                let half = 0.5 * (t.extent[0].hypot(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M);
+                ([t.x[0], t.x[1]], margin + half)
+            }),
+        );
         let params = self.cfg.detect_params(&g);
         self.detector
             .detect(&g, cells, &params, &mut self.detections);
         self.classes.clear();
         for d in &self.detections {
             self.classes.push(self.model.classify(d));
-        }
-        for t in &mut self.tracks {
-            predict(t, dt, self.cfg.accel_sigma);
         }
         let own = Vector2::new(hdr.vessel.position[0], hdr.vessel.position[1]);
         let assigned = self.assign(own);
@@ -468,6 +493,9 @@ fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
 
 /// Two confirmed tracks whose velocities differ by less than this (m/s) can be one object.
 const DUPLICATE_SPEED_MPS: f64 = 1.5;
+
+/// Largest track diagonal (m) a guide window grows with: a boat's, not a shore's.
+const GUIDE_MAX_EXTENT_M: f64 = 12.0;
 
 /// A point this far (m) beyond half a track's largest extent still lies on its object.
 const FRAGMENT_MARGIN_M: f64 = 3.0;

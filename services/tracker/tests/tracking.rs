@@ -159,3 +159,72 @@ fn a_boat_mapped_as_hull_and_wake_blobs_is_one_track() {
     let speed = confirmed[0].velocity[0].hypot(confirmed[0].velocity[1]);
     assert!((speed - 5.0).abs() < 0.5, "speed {speed}");
 }
+
+/// Runs a 6 m x 2.5 m hull north at 7 m/s, 5 Hz, for 8 s. For the first 2 s the map holds it at
+/// full evidence; after that, as in a world map that averages three frames while the boat moves
+/// its own length in two, only this frame's footprint (hazard 85) and the last frame's (70) show.
+/// Returns the ids of the confirmed tracks at the end and the speed of the first one.
+fn fast_boat_in_an_averaged_map(cfg: TrackerConfig) -> (Vec<u32>, f64, u32) {
+    let mut t = Tracker::new(cfg, model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let mut first_id = 0;
+    for k in 0..40u64 {
+        let bow = |k: u64| -30.0 + 1.4 * k as f64;
+        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let footprints: &[(f64, u8)] = if k < 10 {
+            &[(bow(k), 200)]
+        } else {
+            &[(bow(k - 1), 70), (bow(k), 85)]
+        };
+        for &(bow_y, hazard) in footprints {
+            for row in 0..grid.height {
+                for col in 0..grid.width {
+                    let [x, y] = grid.cell_center(col, row);
+                    if x.abs() <= 1.25 && (bow_y - 6.0..=bow_y).contains(&y) {
+                        cells[(row * grid.width + col) as usize] = MapCell {
+                            hazard,
+                            max_height_cm: 150,
+                            observed: 3,
+                            ..Default::default()
+                        };
+                    }
+                }
+            }
+        }
+        let hdr = WorldMapHeader {
+            hdr: Header::new(k, 1_000_000_000 + k * 200_000_000, "test"),
+            grid,
+            vessel: Pose::default(),
+            fused: k,
+        };
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        if k == 9 {
+            let c = list.as_slice().iter().find(|c| c.confirmed == 1);
+            first_id = c.expect("confirmed while fully mapped").id;
+        }
+    }
+    let confirmed: Vec<_> = list
+        .as_slice()
+        .iter()
+        .filter(|c| c.confirmed == 1)
+        .collect();
+    let speed = confirmed
+        .first()
+        .map_or(0.0, |c| c.velocity[0].hypot(c.velocity[1]));
+    (confirmed.iter().map(|c| c.id).collect(), speed, first_id)
+}
+
+#[test]
+fn a_fast_boat_the_map_holds_only_at_one_frame_of_evidence_keeps_its_track() {
+    let (ids, speed, first) = fast_boat_in_an_averaged_map(TrackerConfig::default());
+    assert_eq!(ids, vec![first], "the track was not kept");
+    assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed}");
+    // Without guided detection the same maps lose it: the evidence is below the threshold.
+    let off = TrackerConfig {
+        guided_hazard_threshold: 128,
+        ..TrackerConfig::default()
+    };
+    let (ids, _, _) = fast_boat_in_an_averaged_map(off);
+    assert!(ids.is_empty(), "{ids:?}");
+}
