@@ -27,6 +27,9 @@ pub struct Detection {
     pub elongation: f64,
     /// Mean hazard probability (0..1).
     pub mean_hazard: f64,
+    /// Highest cell hazard (0..=255); below the detection threshold the component exists only
+    /// through a guide window.
+    pub peak_hazard: u8,
     pub cells: u32,
 }
 
@@ -151,7 +154,7 @@ impl Detector {
             let (mut n, mut sw, mut sx, mut sy, mut sxx, mut syy, mut sxy) =
                 (0u32, 0f64, 0f64, 0f64, 0f64, 0f64, 0f64);
             let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
-            let (mut hmax, mut hsum) = (i16::MIN, 0f64);
+            let (mut hmax, mut hsum, mut peak) = (i16::MIN, 0f64, 0u8);
             while let Some(i) = self.stack.pop() {
                 let i = i as usize;
                 let (x, y) = (i % w, i / w);
@@ -171,6 +174,7 @@ impl Detector {
                 r0 = r0.min(y);
                 r1 = r1.max(y);
                 hmax = hmax.max(c.max_height_cm);
+                peak = peak.max(c.hazard);
                 for dy in -link..=link {
                     for dx in -link..=link {
                         let (nx, ny) = (x as i64 + dx, y as i64 + dy);
@@ -206,6 +210,7 @@ impl Detector {
                 height: hmax.max(0) as f64 / 100.0,
                 elongation: (l1 / l2).sqrt(),
                 mean_hazard: hsum / n as f64,
+                peak_hazard: peak,
                 cells: n,
             });
         }
@@ -282,7 +287,7 @@ mod tests {
             resolution_m: 0.5,
             center: [0.0, 0.0],
         };
-        // Two equal strips of one-frame evidence (hazard 85 of 255, below the 128 threshold):
+        // Two equal strips of weak evidence (hazard 85 of 255, below the 128 threshold):
         // a boat's path near (-5, 0) and sun glint near (5, 0).
         let mut cells = vec![MapCell::default(); 800];
         for x in [8usize, 9, 10, 11, 12, 28, 29, 30, 31, 32] {
@@ -303,6 +308,7 @@ mod tests {
         d.detect(&grid, &cells, &params, &mut out);
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].cells, 5);
+        assert_eq!(out[0].peak_hazard, 85);
         assert!((out[0].position[0] + 4.75).abs() < 1e-9, "{:?}", out[0]);
         // The guide applied to that one call.
         d.detect(&grid, &cells, &params, &mut out);

@@ -65,9 +65,10 @@ impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             hazard_threshold: 128,
-            // A cell with full hazard in one of the last three local maps averages 85.
-            guided_hazard_threshold: 64,
-            guide_margin_m: 3.0,
+            // Between the open-water background of the world map (mostly below 96 in the
+            // simulated sets) and the 128 a cell needs from its history alone.
+            guided_hazard_threshold: 96,
+            guide_margin_m: 2.0,
             min_cells: 1,
             link_m: 0.5,
             max_detections: 256,
@@ -236,10 +237,15 @@ impl Tracker {
             predict(t, dt, self.cfg.accel_sigma);
         }
         let margin = self.cfg.guide_margin_m;
+        // Only moving objects, which the map lags behind, and never what the classifier holds
+        // for noise. A window that found weak cells wherever a track is predicted to be would let
+        // the track walk on at its velocity: hence also the guided threshold above the map's
+        // background and the smallest size of a weak component.
+        let guides = |t: &Track| t.confirmed && t.x[2].hypot(t.x[3]) >= GUIDE_MIN_SPEED_MPS;
         self.detector.guide(
             &g,
             self.cfg.guided_hazard_threshold,
-            self.tracks.iter().filter(|t| t.confirmed).map(|t| {
+            self.tracks.iter().filter(|t| guides(t)).map(|t| {
                 // Half the diagonal, capped: a bank-sized track must not lower the threshold
                 // over a whole shore.
                 let half = 0.5 * (t.extent[0].hypot(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M);
@@ -249,6 +255,10 @@ impl Tracker {
         let params = self.cfg.detect_params(&g);
         self.detector
             .detect(&g, cells, &params, &mut self.detections);
+        // A weak component needs some size to stand for a boat rather than a speck of noise.
+        let thr = self.cfg.hazard_threshold;
+        self.detections
+            .retain(|d| d.peak_hazard >= thr || d.cells >= GUIDED_MIN_CELLS);
         self.classes.clear();
         for d in &self.detections {
             self.classes.push(self.model.classify(d));
@@ -273,9 +283,13 @@ impl Tracker {
                     t.history |= 1;
                     t.misses = 0;
                     t.last_hit_ns = stamp;
-                    let (class, conf) = self.classes[di];
-                    t.class_score[class as usize % 5] += conf;
-                    t.extent = [d.extent[0] as f32, d.extent[1] as f32, d.height as f32];
+                    // A component only a guide window let through is the smear of the last
+                    // frames: it places the object but says nothing of its shape.
+                    if d.peak_hazard >= self.cfg.hazard_threshold {
+                        let (class, conf) = self.classes[di];
+                        t.class_score[class as usize % 5] += conf;
+                        t.extent = [d.extent[0] as f32, d.extent[1] as f32, d.height as f32];
+                    }
                     if t.history.count_ones() >= self.cfg.confirm_hits {
                         t.confirmed = true;
                     }
@@ -296,7 +310,9 @@ impl Tracker {
         });
         self.merge_duplicates();
         for (di, d) in self.detections.iter().enumerate() {
-            if used[di] {
+            // A component that is there only through a guide window (no cell at the threshold)
+            // can keep a track but not start one.
+            if used[di] || d.peak_hazard < self.cfg.hazard_threshold {
                 continue;
             }
             let r = measurement_noise(&self.cfg, own, d.position);
@@ -495,7 +511,13 @@ fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
 const DUPLICATE_SPEED_MPS: f64 = 1.5;
 
 /// Largest track diagonal (m) a guide window grows with: a boat's, not a shore's.
-const GUIDE_MAX_EXTENT_M: f64 = 12.0;
+const GUIDE_MAX_EXTENT_M: f64 = 8.0;
+
+/// Tracks slower than this (m/s) stay in their cells long enough for the map to confirm them.
+const GUIDE_MIN_SPEED_MPS: f64 = 1.0;
+
+/// Smallest component (cells) that counts when it exists only through a guide window.
+const GUIDED_MIN_CELLS: u32 = 3;
 
 /// A point this far (m) beyond half a track's largest extent still lies on its object.
 const FRAGMENT_MARGIN_M: f64 = 3.0;

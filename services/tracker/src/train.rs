@@ -360,6 +360,7 @@ mod tests {
             height: 1.0,
             elongation: 1.0,
             mean_hazard: 0.8,
+            peak_hazard: 230,
             cells: 16,
         }
     }
