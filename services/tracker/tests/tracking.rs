@@ -233,3 +233,59 @@ fn a_fast_boat_the_map_holds_only_at_one_frame_of_evidence_keeps_its_track() {
     let (ids, _, _) = fast_boat_in_an_averaged_map(off);
     assert!(ids.is_empty(), "{ids:?}");
 }
+
+#[test]
+fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    // 2 s of a boat at 7 m/s as in the test above, then 4 s of open-water background: every cell
+    // at hazard 90 (below the guided threshold) and scattered single cells at 120 (above it, but
+    // too small to stand for a boat on their own), reshuffled every frame like sun glint.
+    let mut seed = 12345u32;
+    for k in 0..30u64 {
+        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        if k < 10 {
+            let bow_y = -30.0 + 1.4 * k as f64;
+            for row in 0..grid.height {
+                for col in 0..grid.width {
+                    let [x, y] = grid.cell_center(col, row);
+                    let along = y - (bow_y - 3.0);
+                    let inside = along.abs() <= 3.0 && x.abs() <= 1.25;
+                    let rim = (3.0 - along.abs()).min(1.25 - x.abs()) <= 0.75;
+                    if inside && rim {
+                        cells[(row * grid.width + col) as usize].hazard = 150;
+                    }
+                }
+            }
+        } else {
+            for c in cells.iter_mut() {
+                c.hazard = 90;
+            }
+            for _ in 0..800 {
+                // xorshift: deterministic scatter, about one cell in 50.
+                seed ^= seed << 13;
+                seed ^= seed >> 17;
+                seed ^= seed << 5;
+                cells[seed as usize % grid.cell_count()].hazard = 120;
+            }
+        }
+        let hdr = WorldMapHeader {
+            hdr: Header::new(k, 1_000_000_000 + k * 200_000_000, "test"),
+            grid,
+            vessel: Pose::default(),
+            fused: k,
+        };
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        if k == 9 {
+            assert!(list.as_slice().iter().any(|c| c.confirmed == 1));
+        }
+    }
+    let confirmed: Vec<_> = list
+        .as_slice()
+        .iter()
+        .filter(|c| c.confirmed == 1)
+        .map(|c| (c.id, c.position))
+        .collect();
+    assert!(confirmed.is_empty(), "{confirmed:?}");
+}
