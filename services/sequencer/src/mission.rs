@@ -17,7 +17,10 @@
 //! type = "follow"
 //! contact_id = 3                  # or: class = "boat" (nearest confirmed contact of that class)
 //! astern_m = 20.0                 # goal behind the target ...
-//! port_m = 0.0                    # ... and to its left (negative: starboard)
+//! port_m = 0.0                    # ... and to its left (negative: starboard), both measured
+//!                                 # from the contact's leading edge (a target followed from
+//!                                 # astern: its stern; the tracked blob also holds its wake) ...
+//! target_length_m = 9.0           # ... or, when the target's length is known, from its centre
 //! max_speed_mps = 10.0            # optional
 //! duration_s = 240.0              # optional: end of the step; without it, until timeout or abort
 //! lost_timeout_s = 5.0            # optional: the target may vanish this long
@@ -84,6 +87,8 @@ pub enum StepKind {
         astern_m: f64,
         #[serde(default)]
         port_m: f64,
+        #[serde(default)]
+        target_length_m: f64,
         max_speed_mps: Option<f64>,
         duration_s: Option<f64>,
         #[serde(default = "default_lost")]
@@ -292,6 +297,7 @@ fn validate(step: &Step) -> Result<(), Invalid> {
             class,
             astern_m,
             port_m,
+            target_length_m,
             max_speed_mps,
             duration_s,
             lost_timeout_s,
@@ -313,6 +319,12 @@ fn validate(step: &Step) -> Result<(), Invalid> {
             }
             finite("astern_m", &[*astern_m])?;
             finite("port_m", &[*port_m])?;
+            if !(0.0..=MAX_TARGET_LENGTH_M).contains(target_length_m) {
+                return Err((
+                    "target_length_m",
+                    format!("must be within 0..={MAX_TARGET_LENGTH_M} m (0: not known)"),
+                ));
+            }
             if astern_m.hypot(*port_m) < 1.0 {
                 return Err(("astern_m", "the offset (astern_m, port_m) must be at least 1 m: the goal would be the target itself".into()));
             }
@@ -386,6 +398,26 @@ struct Lock {
     /// Where the target was and how it moved when last seen, to take it up again under a new id.
     position: [f64; 2],
     velocity: [f64; 2],
+    /// How far (m) ahead of the tracked position, along the course, the follow offset is
+    /// measured from.
+    reference_m: f64,
+}
+
+/// Longest target a follow step accepts (m).
+const MAX_TARGET_LENGTH_M: f64 = 100.0;
+
+/// Distance (m) from a contact's tracked position (its blob's centroid) to its leading edge along
+/// `course`: half the blob's extent in that direction. Followed from astern, the blob is the
+/// target's stern and the wake behind it, so its centroid lies behind the boat.
+fn leading_edge_m(c: &Contact, course: f64) -> f64 {
+    let (s, co) = course.sin_cos();
+    0.5 * ((c.extent[0] as f64 * co).abs() + (c.extent[1] as f64 * s).abs())
+}
+
+/// `p` moved `d` metres along `course`.
+fn ahead(p: [f64; 2], course: f64, d: f64) -> [f64; 2] {
+    let (s, c) = course.sin_cos();
+    [p[0] + d * c, p[1] + d * s]
 }
 
 /// A followed target whose track broke (the tracker lost it for a moment and gave it a new id) is
@@ -706,6 +738,7 @@ impl Runner {
                 class,
                 astern_m,
                 port_m,
+                target_length_m,
                 max_speed_mps,
                 duration_s,
                 lost_timeout_s,
@@ -744,8 +777,9 @@ impl Runner {
                     }
                     // Lost for a moment: keep after where it is predicted to be, so it is still
                     // in view (and can be taken up again) when the tracker finds it again.
+                    let p = lock.predicted(now);
                     return Some(Directive::Follow {
-                        position: lock.predicted(now),
+                        position: ahead(p, lock.course, lock.reference_m),
                         velocity: lock.velocity,
                         course: lock.course,
                         offset,
@@ -757,20 +791,23 @@ impl Runner {
                 } else {
                     self.lock.map_or(own.yaw, |l| l.course)
                 };
+                let reference_m = leading_edge_m(c, course) + 0.5 * target_length_m;
                 self.lock = Some(Lock {
                     id: c.id,
                     course,
                     last_seen_ns: world.contacts_stamp_ns,
                     position: c.position,
                     velocity: c.velocity,
+                    reference_m,
                 });
                 // The list is as old as its stamp: predict the target to now.
                 let age = now.saturating_sub(world.contacts_stamp_ns) as f64 / NS;
+                let p = [
+                    c.position[0] + c.velocity[0] * age,
+                    c.position[1] + c.velocity[1] * age,
+                ];
                 Some(Directive::Follow {
-                    position: [
-                        c.position[0] + c.velocity[0] * age,
-                        c.position[1] + c.velocity[1] * age,
-                    ],
+                    position: ahead(p, course, reference_m),
                     velocity: c.velocity,
                     course,
                     offset,
@@ -1064,6 +1101,57 @@ mod tests {
         assert!(matches!(r.update(4 * S, &w), Directive::Follow { .. }));
         assert_eq!(r.update(14 * S, &w), Directive::Idle);
         assert!(matches!(r.state(), RunState::Failed(why) if why.contains("lost")));
+    }
+
+    #[test]
+    fn follow_measures_from_the_leading_edge_or_the_known_centre() {
+        let step = |extra: &str| {
+            Mission::parse(&format!(
+                "[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n{extra}"
+            ))
+        };
+        // Followed from astern, northbound at 7 m/s: the blob is the stern and 6 m of wake.
+        let target = Contact {
+            id: 3,
+            class: contact_class::BOAT,
+            confirmed: 1,
+            position: [0.0, 100.0],
+            velocity: [0.0, 7.0],
+            extent: [3.0, 7.0, 1.5],
+            ..Default::default()
+        };
+        let contacts = [target];
+        let w = World {
+            own: OwnState::default(),
+            contacts: &contacts,
+            contacts_stamp_ns: S,
+        };
+        let position = |r: &mut Runner, now| match r.update(now, &w) {
+            Directive::Follow { position, .. } => position,
+            d => panic!("{d:?}"),
+        };
+        // Without a length: from the leading edge, half the blob's north extent ahead.
+        let mut r = Runner::new(10.0);
+        r.load(step("").unwrap());
+        let p = position(&mut r, S);
+        assert!(p[0].abs() < 1e-9 && (p[1] - 103.5).abs() < 1e-9, "{p:?}");
+        // With the target's length: from its centre, half a length further on; also while the
+        // target is lost for a moment and followed where it is predicted.
+        let mut r = Runner::new(10.0);
+        r.load(step("target_length_m = 9.0").unwrap());
+        let p = position(&mut r, S);
+        assert!((p[1] - 108.0).abs() < 1e-9, "{p:?}");
+        let w = World {
+            contacts: &[],
+            contacts_stamp_ns: 2 * S,
+            ..w
+        };
+        let Directive::Follow { position: p, .. } = r.update(2 * S, &w) else {
+            panic!("not following")
+        };
+        assert!((p[1] - 115.0).abs() < 1e-9, "{p:?}");
+        let e = step("target_length_m = -1").unwrap_err().to_string();
+        assert!(e.contains("target_length_m"), "{e}");
     }
 
     #[test]

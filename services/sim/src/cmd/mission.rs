@@ -40,11 +40,18 @@ fn mission_text(world: &sim::World) -> Result<String> {
     if let Some(speed) = m.speed {
         writeln!(text, "cruise_speed_mps = {speed}")?;
     }
-    if m.follow.is_some() {
-        // The scenario's offset is in the target's frame (x ahead, y left): astern is -x.
+    if let Some(target) = &m.follow {
+        // The scenario's offset is in the target's frame (x ahead, y left) from its centre:
+        // astern is -x, and the target's length lets the sequencer measure from its centre too
+        // (the operator of a follow knows what boat it follows).
+        let length = world
+            .objects
+            .iter()
+            .find(|o| &o.name == target)
+            .map_or(0.0, |o| o.extent[0]);
         writeln!(
             text,
-            "\n[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = {}\nport_m = {}\nlost_timeout_s = 10.0",
+            "\n[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = {}\nport_m = {}\ntarget_length_m = {length}\nlost_timeout_s = 10.0",
             -m.follow_offset[0],
             m.follow_offset[1]
         )?;
