@@ -18,9 +18,9 @@
 //! contact_id = 3                  # or: class = "boat" (nearest confirmed contact of that class)
 //! astern_m = 20.0                 # goal behind the target ...
 //! port_m = 0.0                    # ... and to its left (negative: starboard), both measured
-//!                                 # from the contact's leading edge (a target followed from
-//!                                 # astern: its stern; the tracked blob also holds its wake) ...
-//! target_length_m = 9.0           # ... or, when the target's length is known, from its centre
+//!                                 # from the tracked contact: a boat followed from astern shows
+//!                                 # its stern ...
+//! target_length_m = 9.0           # ... so, when its length is known, from half a length ahead
 //! max_speed_mps = 10.0            # optional
 //! duration_s = 240.0              # optional: end of the step; without it, until timeout or abort
 //! lost_timeout_s = 5.0            # optional: the target may vanish this long
@@ -399,20 +399,13 @@ struct Lock {
     position: [f64; 2],
     velocity: [f64; 2],
     /// How far (m) ahead of the tracked position, along the course, the follow offset is
-    /// measured from.
+    /// measured from: half the target's length when the step gives it (a boat seen from astern
+    /// is tracked at its stern).
     reference_m: f64,
 }
 
 /// Longest target a follow step accepts (m).
 const MAX_TARGET_LENGTH_M: f64 = 100.0;
-
-/// Distance (m) from a contact's tracked position (its blob's centroid) to its leading edge along
-/// `course`: half the blob's extent in that direction. Followed from astern, the blob is the
-/// target's stern and the wake behind it, so its centroid lies behind the boat.
-fn leading_edge_m(c: &Contact, course: f64) -> f64 {
-    let (s, co) = course.sin_cos();
-    0.5 * ((c.extent[0] as f64 * co).abs() + (c.extent[1] as f64 * s).abs())
-}
 
 /// `p` moved `d` metres along `course`.
 fn ahead(p: [f64; 2], course: f64, d: f64) -> [f64; 2] {
@@ -791,7 +784,7 @@ impl Runner {
                 } else {
                     self.lock.map_or(own.yaw, |l| l.course)
                 };
-                let reference_m = leading_edge_m(c, course) + 0.5 * target_length_m;
+                let reference_m = 0.5 * target_length_m;
                 self.lock = Some(Lock {
                     id: c.id,
                     course,
@@ -1104,13 +1097,13 @@ mod tests {
     }
 
     #[test]
-    fn follow_measures_from_the_leading_edge_or_the_known_centre() {
+    fn follow_measures_from_the_tracked_stern_or_the_known_centre() {
         let step = |extra: &str| {
             Mission::parse(&format!(
                 "[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n{extra}"
             ))
         };
-        // Followed from astern, northbound at 7 m/s: the blob is the stern and 6 m of wake.
+        // Followed from astern, northbound at 7 m/s: the tracked position is its stern.
         let target = Contact {
             id: 3,
             class: contact_class::BOAT,
@@ -1130,17 +1123,16 @@ mod tests {
             Directive::Follow { position, .. } => position,
             d => panic!("{d:?}"),
         };
-        // Without a length: from the leading edge, half the blob's north extent ahead.
+        // Without a length: from the tracked position.
         let mut r = Runner::new(10.0);
         r.load(step("").unwrap());
-        let p = position(&mut r, S);
-        assert!(p[0].abs() < 1e-9 && (p[1] - 103.5).abs() < 1e-9, "{p:?}");
-        // With the target's length: from its centre, half a length further on; also while the
-        // target is lost for a moment and followed where it is predicted.
+        assert_eq!(position(&mut r, S), [0.0, 100.0]);
+        // With the target's length: from its centre, half a length ahead along its course; also
+        // while the target is lost for a moment and followed where it is predicted.
         let mut r = Runner::new(10.0);
         r.load(step("target_length_m = 9.0").unwrap());
         let p = position(&mut r, S);
-        assert!((p[1] - 108.0).abs() < 1e-9, "{p:?}");
+        assert!(p[0].abs() < 1e-9 && (p[1] - 104.5).abs() < 1e-9, "{p:?}");
         let w = World {
             contacts: &[],
             contacts_stamp_ns: 2 * S,
@@ -1149,7 +1141,7 @@ mod tests {
         let Directive::Follow { position: p, .. } = r.update(2 * S, &w) else {
             panic!("not following")
         };
-        assert!((p[1] - 115.0).abs() < 1e-9, "{p:?}");
+        assert!((p[1] - 111.5).abs() < 1e-9, "{p:?}");
         let e = step("target_length_m = -1").unwrap_err().to_string();
         assert!(e.contains("target_length_m"), "{e}");
     }
