@@ -64,6 +64,9 @@ pub struct ArcConfig {
     /// While following, hazards and contacts this close (m) to the target's predicted position are
     /// the target itself (its hull, its wake, a duplicate track) and block no arc ([`Exempt`]).
     pub followed_exempt_m: f64,
+    /// While following, a contact up to this far (m) astern of the target, within
+    /// `followed_exempt_m / 2` of its track line and moving like it, is its wake and blocks no arc.
+    pub followed_wake_m: f64,
 }
 
 impl Default for ArcConfig {
@@ -85,6 +88,7 @@ impl Default for ArcConfig {
             near_m: 15.0,
             moving_margin_m: 2.0,
             followed_exempt_m: 8.0,
+            followed_wake_m: 30.0,
         }
     }
 }
@@ -126,6 +130,7 @@ impl ArcConfig {
             ("near_m", self.near_m),
             ("moving_margin_m", self.moving_margin_m),
             ("followed_exempt_m", self.followed_exempt_m),
+            ("followed_wake_m", self.followed_wake_m),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));
@@ -204,6 +209,43 @@ impl Blocked {
 pub struct Exempt {
     pub centre: [f64; 2],
     pub radius_m: f64,
+}
+
+/// The target being followed, as contacts are checked against it ([`FollowedTarget::is_wake`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FollowedTarget {
+    pub position: [f64; 2],
+    pub velocity: [f64; 2],
+    /// Course (rad, ENU), kept when the target is too slow to have one.
+    pub course: f64,
+}
+
+/// A contact moving within this much (m/s) of the followed target's velocity moves like it.
+const WAKE_VELOCITY_MPS: f64 = 3.0;
+
+impl FollowedTarget {
+    /// Whether a contact at `position` moving at `velocity` is the target's wake: astern of it
+    /// (up to `length_m`), within `half_width_m` of its track line, and moving like it. The
+    /// white water just astern of a fast boat maps as blobs that the tracker follows at the
+    /// boat's speed, right where the follow goal is; as obstacles they would keep the boat from
+    /// ever closing up.
+    pub fn is_wake(
+        &self,
+        position: [f64; 2],
+        velocity: [f64; 2],
+        length_m: f64,
+        half_width_m: f64,
+    ) -> bool {
+        let (s, c) = self.course.sin_cos();
+        let (dx, dy) = (
+            position[0] - self.position[0],
+            position[1] - self.position[1],
+        );
+        let astern = -(dx * c + dy * s);
+        let across = (-dx * s + dy * c).abs();
+        let dv = (velocity[0] - self.velocity[0]).hypot(velocity[1] - self.velocity[1]);
+        (0.0..=length_m).contains(&astern) && across <= half_width_m && dv <= WAKE_VELOCITY_MPS
+    }
 }
 
 /// A contact that moves: it is predicted at constant velocity while the boat runs each arc.
@@ -692,6 +734,26 @@ mod tests {
         // The same obstacle behind the vessel blocks nothing.
         let b = set.blocked(&hazards, g.center, [0.0, 0.0], -PI / 2.0);
         assert_eq!(b.mask, 0);
+    }
+
+    #[test]
+    fn the_followed_boats_wake_is_astern_on_its_track_and_moves_like_it() {
+        // Target heading north at 7 m/s.
+        let t = FollowedTarget {
+            position: [0.0, 100.0],
+            velocity: [0.0, 7.0],
+            course: std::f64::consts::FRAC_PI_2,
+        };
+        let wake = |p: [f64; 2], v: [f64; 2]| t.is_wake(p, v, 30.0, 4.0);
+        assert!(wake([1.0, 80.0], [0.5, 6.0]), "20 m astern, moving along");
+        assert!(!wake([1.0, 125.0], [0.0, 7.0]), "ahead of the target");
+        assert!(!wake([1.0, 60.0], [0.0, 7.0]), "beyond 30 m astern");
+        assert!(!wake([6.0, 80.0], [0.0, 7.0]), "off its track line");
+        assert!(
+            !wake([1.0, 80.0], [0.0, 0.0]),
+            "standing still: a buoy on its track"
+        );
+        assert!(!wake([1.0, 80.0], [5.0, 7.0]), "crossing");
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //! stamp, so the same inputs always give the same outputs.
 
 use crate::arcs::{
-    angle_diff, ArcChooser, ArcConfig, ArcError, ArcSet, Blocked, Exempt, MovingObstacle,
+    angle_diff, ArcChooser, ArcConfig, ArcError, ArcSet, Blocked, Exempt, FollowedTarget,
+    MovingObstacle,
 };
 use crate::control::{self, ControlConfig, Controller, Guidance, OwnState};
 use crate::mission::{Directive, Mission, MissionError, Runner, World};
@@ -278,12 +279,24 @@ impl Sequencer {
                     contacts_stamp_ns: self.contacts.hdr.stamp_ns,
                 };
                 let directive = self.runner.update(now, &world);
-                let exempt = match directive {
-                    Directive::Follow { position, .. } => Some(Exempt {
-                        centre: position,
-                        radius_m: self.arcs.config().followed_exempt_m,
-                    }),
-                    _ => None,
+                let (exempt, target) = match directive {
+                    Directive::Follow {
+                        position,
+                        velocity,
+                        course,
+                        ..
+                    } => (
+                        Some(Exempt {
+                            centre: position,
+                            radius_m: self.arcs.config().followed_exempt_m,
+                        }),
+                        Some(FollowedTarget {
+                            position,
+                            velocity,
+                            course,
+                        }),
+                    ),
+                    _ => (None, None),
                 };
                 let mut blocked = self.arcs.blocked_except(
                     &self.hazards,
@@ -297,6 +310,7 @@ impl Sequencer {
                     &self.contacts,
                     self.runner.followed_contact(),
                     exempt,
+                    target,
                     &mut self.moving,
                     &own,
                     now,
@@ -430,13 +444,15 @@ const BRAKE_UNTIL_MPS: f64 = 0.3;
 
 /// Arcs that would meet a contact: a moving one where it will be (the map holds where it is now), a
 /// slow one where it is (the tracker may hold a buoy before the map confirms it at the arc
-/// threshold). Confirmed tracks only, not false alarms, not the contact being followed, not shore
-/// pieces larger than `contact_max_extent_m` (the map has those).
+/// threshold). Confirmed tracks only, not false alarms, not the contact being followed nor its
+/// wake, not shore pieces larger than `contact_max_extent_m` (the map has those).
+#[allow(clippy::too_many_arguments)]
 fn blocked_by_contacts(
     arcs: &ArcSet,
     contacts: &ContactList,
     followed: Option<u32>,
     exempt: Option<Exempt>,
+    target: Option<FollowedTarget>,
     moving: &mut Vec<MovingObstacle>,
     own: &OwnState,
     now: u64,
@@ -455,6 +471,14 @@ fn blocked_by_contacts(
                     && !exempt.is_some_and(|e| {
                         (c.position[0] - e.centre[0]).hypot(c.position[1] - e.centre[1])
                             < e.radius_m
+                    })
+                    && !target.is_some_and(|t| {
+                        t.is_wake(
+                            c.position,
+                            c.velocity,
+                            cfg.followed_wake_m,
+                            0.5 * cfg.followed_exempt_m,
+                        )
                     })
                     && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
             })
