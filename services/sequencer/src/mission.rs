@@ -430,6 +430,10 @@ const REACQUIRE_VELOCITY_WEIGHT_S: f64 = 3.0;
 /// classifier often calls a false alarm; its motion is the better witness, so the class only
 /// breaks ties.
 const REACQUIRE_FALSE_ALARM_PENALTY_M: f64 = 10.0;
+/// A new track the classifier calls a false alarm must also move closer to the target's last
+/// velocity than this (m/s): sun glint near a lost target otherwise drifts at a few m/s in about
+/// its direction, and following it slows the boat until the target is gone.
+const REACQUIRE_FALSE_ALARM_VELOCITY_MPS: f64 = 1.5;
 /// Tracks this close (m) to the own boat are never the target: they are its own wake and spray,
 /// which move with it and so, while it follows at the target's speed, like the target.
 const REACQUIRE_MIN_OWN_RANGE_M: f64 = 10.0;
@@ -487,7 +491,14 @@ impl Lock {
         contacts
             .iter()
             .filter(|c| c.confirmed == 1 && off_own(c))
-            .filter(|c| d(c) <= gate && self.velocity_gap(c) <= REACQUIRE_VELOCITY_MPS)
+            .filter(|c| {
+                let max_gap = if c.class == contact_class::FALSE_ALARM {
+                    REACQUIRE_FALSE_ALARM_VELOCITY_MPS
+                } else {
+                    REACQUIRE_VELOCITY_MPS
+                };
+                d(c) <= gate && self.velocity_gap(c) <= max_gap
+            })
             .min_by(|a, b| score(a).total_cmp(&score(b)).then(a.id.cmp(&b.id)))
     }
 }
@@ -1194,11 +1205,16 @@ mod tests {
             ],
         );
         assert_eq!(name, "follow #9");
-        // A false alarm that stands still where the target went is not the target: it stays lost.
+        // A false alarm that stands still where the target went is not the target, nor is one
+        // drifting at 5 m/s in its direction (sun glint): it stays lost. A boat-class track at
+        // 5 m/s would still be taken (3 m/s of slack for a new track's velocity).
         let (d, name) = at(
             4 * S,
             21.0,
-            &[track(12, contact_class::FALSE_ALARM, 42.0, 0.0)],
+            &[
+                track(12, contact_class::FALSE_ALARM, 42.0, 0.0),
+                track(13, contact_class::FALSE_ALARM, 42.5, 5.0),
+            ],
         );
         assert_eq!(name, "follow #9");
         assert!(
