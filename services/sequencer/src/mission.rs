@@ -398,10 +398,6 @@ struct Lock {
     /// Where the target was and how it moved when last seen, to take it up again under a new id.
     position: [f64; 2],
     velocity: [f64; 2],
-    /// How far (m) ahead of the tracked position, along the course, the follow offset is
-    /// measured from: half the target's length when the step gives it (a boat seen from astern
-    /// is tracked at its stern).
-    reference_m: f64,
 }
 
 /// Longest target a follow step accepts (m).
@@ -765,6 +761,9 @@ impl Runner {
                     astern_m: *astern_m,
                     port_m: *port_m,
                 };
+                // The offset is measured from half the target's length ahead of the tracked
+                // position when the step gives it: a boat seen from astern is tracked at its stern.
+                let reference_m = 0.5 * target_length_m;
                 let max_speed_mps = max_speed_mps.unwrap_or(self.max_speed);
                 let Some(c) = found else {
                     let Some(lock) = self.lock else {
@@ -783,7 +782,7 @@ impl Runner {
                     // in view (and can be taken up again) when the tracker finds it again.
                     let p = lock.predicted(now);
                     return Some(Directive::Follow {
-                        position: ahead(p, lock.course, lock.reference_m),
+                        position: ahead(p, lock.course, reference_m),
                         velocity: lock.velocity,
                         course: lock.course,
                         offset,
@@ -795,14 +794,12 @@ impl Runner {
                 } else {
                     self.lock.map_or(own.yaw, |l| l.course)
                 };
-                let reference_m = 0.5 * target_length_m;
                 self.lock = Some(Lock {
                     id: c.id,
                     course,
                     last_seen_ns: world.contacts_stamp_ns,
                     position: c.position,
                     velocity: c.velocity,
-                    reference_m,
                 });
                 // The list is as old as its stamp: predict the target to now.
                 let age = now.saturating_sub(world.contacts_stamp_ns) as f64 / NS;

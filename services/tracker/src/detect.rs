@@ -54,8 +54,8 @@ pub struct Detector {
     /// Cells marked with `guide_pass` lie in a guide window of the next `detect`.
     guide_mark: Vec<u32>,
     guide_pass: u32,
-    guided_threshold: u8,
-    guided: bool,
+    /// Threshold inside the guide windows; `None` once the windows have been used.
+    guided_threshold: Option<u8>,
 }
 
 impl Detector {
@@ -78,8 +78,7 @@ impl Detector {
             self.guide_pass = 0;
         }
         self.guide_pass = self.guide_pass.wrapping_add(1).max(1);
-        self.guided_threshold = threshold;
-        self.guided = true;
+        self.guided_threshold = Some(threshold);
         let r = grid.resolution_m;
         let west = grid.center[0] - w as f64 / 2.0 * r;
         let south = grid.center[1] - h as f64 / 2.0 * r;
@@ -135,12 +134,15 @@ impl Detector {
         let pass = self.pass;
         let thr = threshold.max(1);
         // Guide windows (one-shot): cells marked for this call join from the lower threshold.
-        let guided = std::mem::take(&mut self.guided) && self.guide_mark.len() == w * h;
+        let guided = self
+            .guided_threshold
+            .take()
+            .filter(|_| self.guide_mark.len() == w * h)
+            .map(|g| g.clamp(1, thr));
         let (marks, mark) = (&self.guide_mark, self.guide_pass);
-        let gthr = self.guided_threshold.clamp(1, thr);
         let on = |i: usize| {
             let hz = cells[i].hazard;
-            hz >= thr || (guided && hz >= gthr && marks[i] == mark)
+            hz >= thr || guided.is_some_and(|g| hz >= g && marks[i] == mark)
         };
         let r = grid.resolution_m;
         for start in 0..w * h {
@@ -154,7 +156,7 @@ impl Detector {
             let (mut n, mut sw, mut sx, mut sy, mut sxx, mut syy, mut sxy) =
                 (0u32, 0f64, 0f64, 0f64, 0f64, 0f64, 0f64);
             let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
-            let (mut hmax, mut hsum, mut peak) = (i16::MIN, 0f64, 0u8);
+            let (mut hmax, mut peak) = (i16::MIN, 0u8);
             while let Some(i) = self.stack.pop() {
                 let i = i as usize;
                 let (x, y) = (i % w, i / w);
@@ -162,7 +164,6 @@ impl Detector {
                 let wgt = c.hazard as f64 / 255.0;
                 n += 1;
                 sw += wgt;
-                hsum += wgt;
                 let (fx, fy) = (x as f64, y as f64);
                 sx += wgt * fx;
                 sy += wgt * fy;
@@ -209,7 +210,7 @@ impl Detector {
                 area: n as f64 * r * r,
                 height: hmax.max(0) as f64 / 100.0,
                 elongation: (l1 / l2).sqrt(),
-                mean_hazard: hsum / n as f64,
+                mean_hazard: sw / n as f64,
                 peak_hazard: peak,
                 cells: n,
             });

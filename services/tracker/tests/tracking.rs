@@ -19,6 +19,46 @@ fn model() -> Model {
     Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json")).unwrap()
 }
 
+/// Paints a 6 m x 2.5 m hull centred at `centre`, heading along the unit vector `heading`, as
+/// stereo maps it: its rim at `hazard`, not a solid rectangle.
+fn paint_hull_rim(
+    grid: &GridGeometry,
+    cells: &mut [MapCell],
+    centre: [f64; 2],
+    heading: [f64; 2],
+    hazard: u8,
+) {
+    let [c, s] = heading;
+    for row in 0..grid.height {
+        for col in 0..grid.width {
+            let [x, y] = grid.cell_center(col, row);
+            let (dx, dy) = (x - centre[0], y - centre[1]);
+            let along = dx * c + dy * s;
+            let across = -dx * s + dy * c;
+            let inside = along.abs() <= 3.0 && across.abs() <= 1.25;
+            let rim = (3.0 - along.abs()).min(1.25 - across.abs()) <= 0.75;
+            if inside && rim {
+                cells[(row * grid.width + col) as usize] = MapCell {
+                    hazard,
+                    max_height_cm: 150,
+                    observed: 3,
+                    ..Default::default()
+                };
+            }
+        }
+    }
+}
+
+/// Header of world map `k` of a run at one map every `period_ns`, the vessel at the origin.
+fn map_header(grid: GridGeometry, k: u64, period_ns: u64) -> WorldMapHeader {
+    WorldMapHeader {
+        hdr: Header::new(k, 1_000_000_000 + k * period_ns, "test"),
+        grid,
+        vessel: Pose::default(),
+        fused: k,
+    }
+}
+
 #[test]
 fn a_boat_moving_at_5_mps_gives_one_confirmed_track_with_a_stable_id() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
@@ -31,31 +71,14 @@ fn a_boat_moving_at_5_mps_gives_one_confirmed_track_with_a_stable_id() {
         let time = k as f64 * 0.1;
         let (bx, by) = (-20.0 + vx * time, -15.0 + vy * time);
         let mut cells = vec![MapCell::default(); grid.cell_count()];
-        for row in 0..grid.height {
-            for col in 0..grid.width {
-                let [x, y] = grid.cell_center(col, row);
-                let (dx, dy) = (x - bx, y - by);
-                let along = dx * 0.6f64.cos() + dy * 0.6f64.sin();
-                let across = -dx * 0.6f64.sin() + dy * 0.6f64.cos();
-                // What stereo maps of a hull: its rim at moderate hazard, not a solid rectangle.
-                let inside = along.abs() <= 3.0 && across.abs() <= 1.25;
-                let rim = (3.0 - along.abs()).min(1.25 - across.abs()) <= 0.75;
-                if inside && rim {
-                    cells[(row * grid.width + col) as usize] = MapCell {
-                        hazard: 150,
-                        max_height_cm: 150,
-                        observed: 3,
-                        ..Default::default()
-                    };
-                }
-            }
-        }
-        let hdr = WorldMapHeader {
-            hdr: Header::new(k, 1_000_000_000 + k * 100_000_000, "test"),
-            grid,
-            vessel: Pose::default(),
-            fused: k,
-        };
+        paint_hull_rim(
+            &grid,
+            &mut cells,
+            [bx, by],
+            [0.6f64.cos(), 0.6f64.sin()],
+            150,
+        );
+        let hdr = map_header(grid, k, 100_000_000);
         t.update(&hdr, &cells, "tracker", &mut list).unwrap();
         assert_eq!(list.hdr.stamp_ns, hdr.hdr.stamp_ns);
         for c in list.as_slice().iter().filter(|c| c.confirmed == 1) {
@@ -139,12 +162,7 @@ fn a_boat_mapped_as_hull_and_wake_blobs_is_one_track() {
         if k % 4 != 3 {
             blob(-1.0, 1.0, bow_y - 9.0, bow_y - 7.5, 150);
         }
-        let hdr = WorldMapHeader {
-            hdr: Header::new(k, 1_000_000_000 + k * 100_000_000, "test"),
-            grid,
-            vessel: Pose::default(),
-            fused: k,
-        };
+        let hdr = map_header(grid, k, 100_000_000);
         t.update(&hdr, &cells, "tracker", &mut list).unwrap();
         let confirmed = list.as_slice().iter().filter(|c| c.confirmed == 1).count();
         most_confirmed = most_confirmed.max(confirmed);
@@ -179,30 +197,9 @@ fn fast_boat_in_an_averaged_map(cfg: TrackerConfig) -> (Vec<u32>, f64, u32) {
             &[(bow(k - 1), 100), (bow(k), 110)]
         };
         for &(bow_y, hazard) in footprints {
-            for row in 0..grid.height {
-                for col in 0..grid.width {
-                    let [x, y] = grid.cell_center(col, row);
-                    // The hull's rim, as in the 5 m/s test (what stereo maps of a hull).
-                    let along = y - (bow_y - 3.0);
-                    let inside = along.abs() <= 3.0 && x.abs() <= 1.25;
-                    let rim = (3.0 - along.abs()).min(1.25 - x.abs()) <= 0.75;
-                    if inside && rim {
-                        cells[(row * grid.width + col) as usize] = MapCell {
-                            hazard,
-                            max_height_cm: 150,
-                            observed: 3,
-                            ..Default::default()
-                        };
-                    }
-                }
-            }
+            paint_hull_rim(&grid, &mut cells, [0.0, bow_y - 3.0], [0.0, 1.0], hazard);
         }
-        let hdr = WorldMapHeader {
-            hdr: Header::new(k, 1_000_000_000 + k * 200_000_000, "test"),
-            grid,
-            vessel: Pose::default(),
-            fused: k,
-        };
+        let hdr = map_header(grid, k, 200_000_000);
         t.update(&hdr, &cells, "tracker", &mut list).unwrap();
         if k == 9 {
             let c = list.as_slice().iter().find(|c| c.confirmed == 1);
@@ -247,17 +244,7 @@ fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
         let mut cells = vec![MapCell::default(); grid.cell_count()];
         if k < 10 {
             let bow_y = -30.0 + 1.4 * k as f64;
-            for row in 0..grid.height {
-                for col in 0..grid.width {
-                    let [x, y] = grid.cell_center(col, row);
-                    let along = y - (bow_y - 3.0);
-                    let inside = along.abs() <= 3.0 && x.abs() <= 1.25;
-                    let rim = (3.0 - along.abs()).min(1.25 - x.abs()) <= 0.75;
-                    if inside && rim {
-                        cells[(row * grid.width + col) as usize].hazard = 150;
-                    }
-                }
-            }
+            paint_hull_rim(&grid, &mut cells, [0.0, bow_y - 3.0], [0.0, 1.0], 150);
         } else {
             for c in cells.iter_mut() {
                 c.hazard = 90;
@@ -270,12 +257,7 @@ fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
                 cells[seed as usize % grid.cell_count()].hazard = 120;
             }
         }
-        let hdr = WorldMapHeader {
-            hdr: Header::new(k, 1_000_000_000 + k * 200_000_000, "test"),
-            grid,
-            vessel: Pose::default(),
-            fused: k,
-        };
+        let hdr = map_header(grid, k, 200_000_000);
         t.update(&hdr, &cells, "tracker", &mut list).unwrap();
         if k == 9 {
             assert!(list.as_slice().iter().any(|c| c.confirmed == 1));
