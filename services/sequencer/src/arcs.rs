@@ -222,17 +222,22 @@ pub struct FollowedTarget {
 
 /// A contact moving within this much (m/s) of the followed target's velocity moves like it.
 const WAKE_VELOCITY_MPS: f64 = 3.0;
+/// A contact slower than this (m/s) stands still.
+const WAKE_STILL_MPS: f64 = 1.0;
 
 impl FollowedTarget {
     /// Whether a contact at `position` moving at `velocity` is the target's wake: astern of it
-    /// (up to `length_m`), within `half_width_m` of its track line, and moving like it. The
-    /// white water just astern of a fast boat maps as blobs that the tracker follows at the
-    /// boat's speed, right where the follow goal is; as obstacles they would keep the boat from
-    /// ever closing up.
+    /// (up to `length_m`), within `half_width_m` of its track line, and moving like it or
+    /// (when `still_may_be_wake`: not a channel marker) standing still. The white water and the stale map cells just astern of a fast boat map as
+    /// blobs that the tracker follows at about the boat's speed, or leaves standing where the
+    /// boat was, right where the follow goal is; as obstacles they would keep the boat from ever
+    /// closing up. Nothing solid stands still on the water the target has just crossed (the map
+    /// pass still sees a real obstacle beside its track).
     pub fn is_wake(
         &self,
         position: [f64; 2],
         velocity: [f64; 2],
+        still_may_be_wake: bool,
         length_m: f64,
         half_width_m: f64,
     ) -> bool {
@@ -244,7 +249,10 @@ impl FollowedTarget {
         let astern = -(dx * c + dy * s);
         let across = (-dx * s + dy * c).abs();
         let dv = (velocity[0] - self.velocity[0]).hypot(velocity[1] - self.velocity[1]);
-        (0.0..=length_m).contains(&astern) && across <= half_width_m && dv <= WAKE_VELOCITY_MPS
+        let still = still_may_be_wake && velocity[0].hypot(velocity[1]) < WAKE_STILL_MPS;
+        (0.0..=length_m).contains(&astern)
+            && across <= half_width_m
+            && (dv <= WAKE_VELOCITY_MPS || still)
     }
 }
 
@@ -737,23 +745,26 @@ mod tests {
     }
 
     #[test]
-    fn the_followed_boats_wake_is_astern_on_its_track_and_moves_like_it() {
+    fn the_followed_boats_wake_is_astern_on_its_track_and_moves_like_it_or_stands_still() {
         // Target heading north at 7 m/s.
         let t = FollowedTarget {
             position: [0.0, 100.0],
             velocity: [0.0, 7.0],
             course: std::f64::consts::FRAC_PI_2,
         };
-        let wake = |p: [f64; 2], v: [f64; 2]| t.is_wake(p, v, 30.0, 4.0);
+        let wake = |p: [f64; 2], v: [f64; 2]| t.is_wake(p, v, true, 30.0, 4.0);
         assert!(wake([1.0, 80.0], [0.5, 6.0]), "20 m astern, moving along");
         assert!(!wake([1.0, 125.0], [0.0, 7.0]), "ahead of the target");
         assert!(!wake([1.0, 60.0], [0.0, 7.0]), "beyond 30 m astern");
         assert!(!wake([6.0, 80.0], [0.0, 7.0]), "off its track line");
-        assert!(
-            !wake([1.0, 80.0], [0.0, 0.0]),
-            "standing still: a buoy on its track"
-        );
         assert!(!wake([1.0, 80.0], [5.0, 7.0]), "crossing");
+        assert!(!wake([6.0, 80.0], [0.0, 0.0]), "standing still beside it");
+        // Standing still on water the target has just crossed: the map cells it left behind.
+        assert!(wake([1.0, 80.0], [0.0, 0.3]), "left behind on its track");
+        assert!(
+            !t.is_wake([1.0, 80.0], [0.0, 0.0], false, 30.0, 4.0),
+            "a channel marker is never wake"
+        );
     }
 
     #[test]

@@ -476,6 +476,7 @@ fn blocked_by_contacts(
                         t.is_wake(
                             c.position,
                             c.velocity,
+                            c.class != contact_class::CHANNEL_MARKER,
                             cfg.followed_wake_m,
                             0.5 * cfg.followed_exempt_m,
                         )

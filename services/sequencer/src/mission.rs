@@ -395,10 +395,25 @@ struct Lock {
     id: u32,
     course: f64,
     last_seen_ns: u64,
-    /// Where the target was and how it moved when last seen, to take it up again under a new id.
+    /// When the target was first locked (stream ns).
+    locked_ns: u64,
+    /// Where the target was when last seen, to take it up again under a new id.
     position: [f64; 2],
+    /// Its velocity smoothed over [`LOCK_VELOCITY_TAU_S`]: what the boat matches and what a
+    /// track must move like to stay the target.
     velocity: [f64; 2],
 }
+
+/// Time constant (s) of the lock's smoothed target velocity. A boat changes speed by a few m/s
+/// over seconds; a track's velocity drops by as much within a second when its blob grows a trail
+/// of stale map cells behind the boat, and that track then falls behind the boat it tracked.
+const LOCK_VELOCITY_TAU_S: f64 = 1.0;
+/// After this long (s) locked, the smoothed velocity is trusted: the followed id stays the
+/// target only while its velocity is within [`CONTINUE_VELOCITY_MPS`] of it. Before, a young
+/// track's velocity may still be junk.
+const LOCK_SETTLE_S: f64 = 3.0;
+/// See [`LOCK_SETTLE_S`] (m/s).
+const CONTINUE_VELOCITY_MPS: f64 = 2.5;
 
 /// Longest target a follow step accepts (m).
 const MAX_TARGET_LENGTH_M: f64 = 100.0;
@@ -449,7 +464,25 @@ impl Lock {
         ]
     }
 
-    /// Velocity difference (m/s) between a contact and the target as last seen.
+    /// The lock after the target was seen as `c` in the contact list stamped `stamp_ns`.
+    fn seen(self, c: &Contact, stamp_ns: u64) -> Lock {
+        let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
+        let k = 1.0 - (-dt / LOCK_VELOCITY_TAU_S).exp();
+        let velocity = [
+            self.velocity[0] + k * (c.velocity[0] - self.velocity[0]),
+            self.velocity[1] + k * (c.velocity[1] - self.velocity[1]),
+        ];
+        Lock {
+            id: c.id,
+            course: course_of(velocity).unwrap_or(self.course),
+            last_seen_ns: stamp_ns.max(self.last_seen_ns),
+            position: c.position,
+            velocity,
+            ..self
+        }
+    }
+
+    /// Velocity difference (m/s) between a contact and the target's smoothed velocity.
     fn velocity_gap(&self, c: &Contact) -> f64 {
         (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
     }
@@ -464,9 +497,15 @@ impl Lock {
         own: [f64; 2],
     ) -> Option<&'a Contact> {
         if let Some(c) = contacts.iter().find(|c| c.id == self.id) {
-            if c.class != contact_class::FALSE_ALARM
-                || self.velocity_gap(c) <= REACQUIRE_VELOCITY_MPS
-            {
+            let settled = stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S;
+            let max_gap = if settled {
+                CONTINUE_VELOCITY_MPS
+            } else if c.class == contact_class::FALSE_ALARM {
+                REACQUIRE_VELOCITY_MPS
+            } else {
+                f64::INFINITY
+            };
+            if self.velocity_gap(c) <= max_gap {
                 return Some(c);
             }
         }
@@ -486,7 +525,7 @@ impl Lock {
         };
         contacts
             .iter()
-            .filter(|c| c.confirmed == 1 && off_own(c))
+            .filter(|c| c.confirmed == 1 && c.id != self.id && off_own(c))
             .filter(|c| {
                 let max_gap = if c.class == contact_class::FALSE_ALARM {
                     REACQUIRE_FALSE_ALARM_VELOCITY_MPS
@@ -789,28 +828,24 @@ impl Runner {
                         max_speed_mps,
                     });
                 };
-                let course = if c.velocity[0].hypot(c.velocity[1]) > 0.5 {
-                    c.velocity[1].atan2(c.velocity[0])
-                } else {
-                    self.lock.map_or(own.yaw, |l| l.course)
+                let lock = match self.lock {
+                    Some(lock) => lock.seen(c, world.contacts_stamp_ns),
+                    None => Lock {
+                        id: c.id,
+                        course: course_of(c.velocity).unwrap_or(own.yaw),
+                        last_seen_ns: world.contacts_stamp_ns,
+                        locked_ns: world.contacts_stamp_ns,
+                        position: c.position,
+                        velocity: c.velocity,
+                    },
                 };
-                self.lock = Some(Lock {
-                    id: c.id,
-                    course,
-                    last_seen_ns: world.contacts_stamp_ns,
-                    position: c.position,
-                    velocity: c.velocity,
-                });
+                self.lock = Some(lock);
                 // The list is as old as its stamp: predict the target to now.
-                let age = now.saturating_sub(world.contacts_stamp_ns) as f64 / NS;
-                let p = [
-                    c.position[0] + c.velocity[0] * age,
-                    c.position[1] + c.velocity[1] * age,
-                ];
+                let p = lock.predicted(now);
                 Some(Directive::Follow {
-                    position: ahead(p, course, reference_m),
-                    velocity: c.velocity,
-                    course,
+                    position: ahead(p, lock.course, reference_m),
+                    velocity: lock.velocity,
+                    course: lock.course,
                     offset,
                     max_speed_mps,
                 })
@@ -831,6 +866,11 @@ impl Runner {
             StepKind::Wait { seconds } => (elapsed < *seconds).then_some(Directive::Hold),
         }
     }
+}
+
+/// Course (rad, ENU) of a velocity, if it is fast enough to have one.
+fn course_of(v: [f64; 2]) -> Option<f64> {
+    (v[0].hypot(v[1]) > 0.5).then(|| v[1].atan2(v[0]))
 }
 
 fn nearest(contacts: &[Contact], class: u8, from: [f64; 2]) -> Option<&Contact> {
@@ -1215,9 +1255,57 @@ mod tests {
         );
         assert_eq!(name, "follow #9");
         assert!(
-            matches!(d, Directive::Follow { position, .. } if (position[0] - 42.2).abs() < 1e-9),
-            "followed where #9 is predicted: {d:?}"
+            matches!(d, Directive::Follow { position, .. } if (position[0] - 42.13).abs() < 0.01),
+            "followed where #9 is predicted at the smoothed 7.13 m/s: {d:?}"
         );
+    }
+
+    #[test]
+    fn the_lock_smooths_the_targets_velocity_and_drops_a_track_that_falls_behind_it() {
+        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
+            .unwrap();
+        let mut r = Runner::new(10.0);
+        r.load(m);
+        let track = |x: f64, vx: f64| Contact {
+            id: 3,
+            class: contact_class::BOAT,
+            confirmed: 1,
+            position: [x, 0.0],
+            velocity: [vx, 0.0],
+            ..Default::default()
+        };
+        let mut at = |t: u64, contacts: &[Contact]| {
+            let w = World {
+                own: OwnState::default(),
+                contacts,
+                contacts_stamp_ns: t,
+            };
+            match r.update(t, &w) {
+                Directive::Follow {
+                    position, velocity, ..
+                } => (position, velocity, r.step_name()),
+                d => panic!("{d:?}"),
+            }
+        };
+        // Locked at 1 s; a young track's velocity is taken, smoothed (1 s time constant).
+        at(S, &[track(20.0, 7.0)]);
+        let (_, v, _) = at(2 * S, &[track(25.0, 4.0)]);
+        let expected = 7.0 - 3.0 * (1.0 - (-1.0f64).exp());
+        assert!((v[0] - expected).abs() < 1e-9, "{v:?}");
+        for k in 3..=5u64 {
+            at(k * S, &[track(25.0 + 7.0 * (k - 2) as f64, 7.0)]);
+        }
+        let (_, v, _) = at(5 * S, &[track(46.0, 7.0)]);
+        assert!((v[0] - 7.0).abs() < 0.3, "settled near 7 m/s: {v:?}");
+        // Settled: the track's blob grows a trail, its velocity drops to 3.5 m/s and it falls
+        // behind. It is no longer the target, which is followed where it is predicted.
+        let (p, v, name) = at(6 * S, &[track(50.0, 3.5)]);
+        assert_eq!(name, "follow #3");
+        assert!((v[0] - 7.0).abs() < 0.3, "{v:?}");
+        assert!(p[0] > 52.5, "predicted ahead of the lagging track: {p:?}");
+        // Moving like the target again, the same track is the target again.
+        let (p, _, _) = at(7 * S, &[track(60.0, 6.5)]);
+        assert!((p[0] - 60.0).abs() < 1e-9, "{p:?}");
     }
 
     #[test]
