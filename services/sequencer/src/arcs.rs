@@ -52,6 +52,11 @@ pub struct ArcConfig {
     /// arc ([`ArcSet::blocked_by_moving`]); slower ones block where they are, like a map hazard
     /// (a buoy the tracker holds before the world map has confirmed it at `hazard_threshold`).
     pub moving_min_speed_mps: f64,
+    /// ... and only once their track is this old (s), and never channel markers or extended
+    /// obstacles (they do not move: their velocity is their blob changing shape). A young track's
+    /// velocity is a few noisy updates; a burst of such tracks on glinting water, predicted along
+    /// it at 5-13 m/s, swept every arc and braked the boat while the map held nothing lethal.
+    pub moving_min_age_s: f64,
     /// Contacts larger than this (m, along either map axis) are shore or bank pieces: the map holds
     /// them, and their tracked velocity is the blob changing shape, not motion.
     pub contact_max_extent_m: f64,
@@ -65,7 +70,8 @@ pub struct ArcConfig {
     /// the target itself (its hull, its wake, a duplicate track) and block no arc ([`Exempt`]).
     pub followed_exempt_m: f64,
     /// While following, a contact up to this far (m) astern of the target, within
-    /// `followed_exempt_m / 2` of its track line and moving like it, is its wake and blocks no arc.
+    /// `followed_exempt_m / 2` of its track line and moving like it (or, unless a channel marker,
+    /// along its course no faster than it), is its wake and blocks no arc.
     pub followed_wake_m: f64,
 }
 
@@ -84,6 +90,7 @@ impl Default for ArcConfig {
             unknown_is_blocked: false,
             hysteresis_rad: 0.08,
             moving_min_speed_mps: 1.0,
+            moving_min_age_s: 2.0,
             contact_max_extent_m: 15.0,
             near_m: 15.0,
             moving_margin_m: 2.0,
@@ -126,6 +133,7 @@ impl ArcConfig {
             ("hazard_threshold", self.hazard_threshold),
             ("hysteresis_rad", self.hysteresis_rad),
             ("moving_min_speed_mps", self.moving_min_speed_mps),
+            ("moving_min_age_s", self.moving_min_age_s),
             ("contact_max_extent_m", self.contact_max_extent_m),
             ("near_m", self.near_m),
             ("moving_margin_m", self.moving_margin_m),
@@ -222,22 +230,21 @@ pub struct FollowedTarget {
 
 /// A contact moving within this much (m/s) of the followed target's velocity moves like it.
 const WAKE_VELOCITY_MPS: f64 = 3.0;
-/// A contact slower than this (m/s) stands still.
-const WAKE_STILL_MPS: f64 = 1.0;
 
 impl FollowedTarget {
     /// Whether a contact at `position` moving at `velocity` is the target's wake: astern of it
-    /// (up to `length_m`), within `half_width_m` of its track line, and moving like it or
-    /// (when `still_may_be_wake`: not a channel marker) standing still. The white water and the stale map cells just astern of a fast boat map as
-    /// blobs that the tracker follows at about the boat's speed, or leaves standing where the
-    /// boat was, right where the follow goal is; as obstacles they would keep the boat from ever
-    /// closing up. Nothing solid stands still on the water the target has just crossed (the map
-    /// pass still sees a real obstacle beside its track).
+    /// (up to `length_m`), within `half_width_m` of its track line, and moving like it or (when
+    /// `trail_may_be_wake`: not a channel marker) along its course no faster than it, standing
+    /// still included. The white water and the stale map cells just astern of a fast boat map as
+    /// blobs that the tracker follows at up to the boat's speed, or leaves where the boat was,
+    /// right where the follow goal is; as obstacles they would keep the boat from ever closing
+    /// up. Nothing solid stands on water the target has just crossed (the map pass still sees a
+    /// real obstacle beside its track).
     pub fn is_wake(
         &self,
         position: [f64; 2],
         velocity: [f64; 2],
-        still_may_be_wake: bool,
+        trail_may_be_wake: bool,
         length_m: f64,
         half_width_m: f64,
     ) -> bool {
@@ -249,10 +256,17 @@ impl FollowedTarget {
         let astern = -(dx * c + dy * s);
         let across = (-dx * s + dy * c).abs();
         let dv = (velocity[0] - self.velocity[0]).hypot(velocity[1] - self.velocity[1]);
-        let still = still_may_be_wake && velocity[0].hypot(velocity[1]) < WAKE_STILL_MPS;
+        // Along the target's course, no faster than it: still, or a trail track whose velocity
+        // is somewhere between the boat's and none. Crossing or overtaking is never wake.
+        let speed = self.velocity[0].hypot(self.velocity[1]);
+        let v_along = velocity[0] * c + velocity[1] * s;
+        let v_across = (-velocity[0] * s + velocity[1] * c).abs();
+        let trails = trail_may_be_wake
+            && v_across <= WAKE_VELOCITY_MPS
+            && (-WAKE_VELOCITY_MPS..=speed + WAKE_VELOCITY_MPS).contains(&v_along);
         (0.0..=length_m).contains(&astern)
             && across <= half_width_m
-            && (dv <= WAKE_VELOCITY_MPS || still)
+            && (dv <= WAKE_VELOCITY_MPS || trails)
     }
 }
 
@@ -759,8 +773,12 @@ mod tests {
         assert!(!wake([6.0, 80.0], [0.0, 7.0]), "off its track line");
         assert!(!wake([1.0, 80.0], [5.0, 7.0]), "crossing");
         assert!(!wake([6.0, 80.0], [0.0, 0.0]), "standing still beside it");
-        // Standing still on water the target has just crossed: the map cells it left behind.
+        assert!(!wake([1.0, 80.0], [0.0, 11.0]), "overtaking it");
+        assert!(!wake([1.0, 80.0], [0.0, -5.0]), "coming the other way");
+        // Still or slow along its course on water the target has just crossed: map cells it left
+        // behind, or a track on them whose velocity is caught between the boat's and none.
         assert!(wake([1.0, 80.0], [0.0, 0.3]), "left behind on its track");
+        assert!(wake([1.0, 80.0], [1.3, 2.3]), "a trail track slower than the boat");
         assert!(
             !t.is_wake([1.0, 80.0], [0.0, 0.0], false, 30.0, 4.0),
             "a channel marker is never wake"

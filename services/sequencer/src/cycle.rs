@@ -443,8 +443,8 @@ impl Sequencer {
 const BRAKE_UNTIL_MPS: f64 = 0.3;
 
 /// Arcs that would meet a contact: a moving one where it will be (the map holds where it is now), a
-/// slow one where it is (the tracker may hold a buoy before the map confirms it at the arc
-/// threshold). Confirmed tracks only, not false alarms, not the contact being followed nor its
+/// slow, young, marker or extended one where it is (the tracker may hold a buoy before the map
+/// confirms it at the arc threshold). Confirmed tracks only, not false alarms, not the contact being followed nor its
 /// wake, not shore pieces larger than `contact_max_extent_m` (the map has those).
 #[allow(clippy::too_many_arguments)]
 fn blocked_by_contacts(
@@ -484,7 +484,10 @@ fn blocked_by_contacts(
                     && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
             })
             .map(|c| {
-                let moving = c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps;
+                let moving = c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
+                    && c.age_s as f64 >= cfg.moving_min_age_s
+                    && c.class != contact_class::CHANNEL_MARKER
+                    && c.class != contact_class::EXTENDED;
                 let velocity = if moving { c.velocity } else { [0.0; 2] };
                 // Two sigma of position, capped: a loose new track must not block everything.
                 let sigma = (c.covariance[0].max(c.covariance[5]) as f64)

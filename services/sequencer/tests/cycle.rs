@@ -262,7 +262,7 @@ fn nan_ins_is_refused_and_an_invalid_mission_leaves_the_running_one() {
     );
 }
 
-/// A confirmed boat contact at `position` (ENU) moving at `velocity`.
+/// A confirmed boat contact, tracked for 5 s, at `position` (ENU) moving at `velocity`.
 fn boat_contacts(stamp_ns: u64, position: [f64; 2], velocity: [f64; 2]) -> ContactList {
     let mut list = ContactList {
         hdr: Header::new(0, stamp_ns, "test"),
@@ -276,6 +276,7 @@ fn boat_contacts(stamp_ns: u64, position: [f64; 2], velocity: [f64; 2]) -> Conta
         position,
         velocity,
         extent: [6.0, 2.5, 1.5],
+        age_s: 5.0,
         ..Default::default()
     };
     list
@@ -304,6 +305,23 @@ fn a_boat_about_to_cross_ahead_blocks_the_course_the_empty_map_leaves_open() {
     let (_, status) = seq.cycle("test");
     assert_eq!(status.blocked_arcs, [0, 0]);
     assert_eq!(status.chosen_arc as usize, straight);
+
+    // A track younger than `moving_min_age_s`, or one the classifier calls a channel marker or an
+    // extended obstacle, blocks where it is: its velocity is a few noisy updates or its blob
+    // changing shape, not motion. Far to starboard, it leaves the straight arc free.
+    let mut young = crossing;
+    young.contacts[0].age_s = 0.8;
+    let mut marker = crossing;
+    marker.contacts[0].class = contact_class::CHANNEL_MARKER;
+    let mut extended = crossing;
+    extended.contacts[0].class = contact_class::EXTENDED;
+    for list in [young, marker, extended] {
+        let mut seq = started(EAST);
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&list);
+        let (_, status) = seq.cycle("test");
+        assert!(!status.arc_blocked(straight), "{:?}", list.contacts[0]);
+    }
 
     // A tentative track does not steer the boat yet.
     let mut tentative = crossing;
