@@ -397,6 +397,8 @@ struct Lock {
     last_seen_ns: u64,
     /// When the target was first locked (stream ns).
     locked_ns: u64,
+    /// When the followed track last had a detection (was not coasting).
+    detected_ns: u64,
     /// Where the target was when last seen, to take it up again under a new id.
     position: [f64; 2],
     /// Its velocity smoothed over [`LOCK_VELOCITY_TAU_S`]: what the boat matches and what a
@@ -414,6 +416,11 @@ const LOCK_VELOCITY_TAU_S: f64 = 1.0;
 const LOCK_SETTLE_S: f64 = 3.0;
 /// See [`LOCK_SETTLE_S`] (m/s).
 const CONTINUE_VELOCITY_MPS: f64 = 2.5;
+/// A followed track coasting (no detection) for longer than this (s) is a guess: the target is
+/// followed where the lock predicts it and may be taken up by another track found there. A
+/// coasting track keeps the velocity it had, and one a few m/s off drifted 25 m from the boat
+/// while a new track held the boat itself.
+const LOCK_MAX_COAST_S: f64 = 1.0;
 
 /// Longest target a follow step accepts (m).
 const MAX_TARGET_LENGTH_M: f64 = 100.0;
@@ -476,6 +483,12 @@ impl Lock {
             id: c.id,
             course: course_of(velocity).unwrap_or(self.course),
             last_seen_ns: stamp_ns.max(self.last_seen_ns),
+            // A track taken up under a new id counts as detected from now.
+            detected_ns: if c.coasting == 0 || c.id != self.id {
+                stamp_ns
+            } else {
+                self.detected_ns
+            },
             position: c.position,
             velocity,
             ..self
@@ -496,7 +509,10 @@ impl Lock {
         stamp_ns: u64,
         own: [f64; 2],
     ) -> Option<&'a Contact> {
-        if let Some(c) = contacts.iter().find(|c| c.id == self.id) {
+        let coasted_out = |c: &Contact| {
+            c.coasting == 1 && stamp_ns.saturating_sub(self.detected_ns) as f64 / NS > LOCK_MAX_COAST_S
+        };
+        if let Some(c) = contacts.iter().find(|c| c.id == self.id && !coasted_out(c)) {
             let settled = stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S;
             let max_gap = if settled {
                 CONTINUE_VELOCITY_MPS
@@ -835,6 +851,7 @@ impl Runner {
                         course: course_of(c.velocity).unwrap_or(own.yaw),
                         last_seen_ns: world.contacts_stamp_ns,
                         locked_ns: world.contacts_stamp_ns,
+                        detected_ns: world.contacts_stamp_ns,
                         position: c.position,
                         velocity: c.velocity,
                     },
@@ -1306,6 +1323,44 @@ mod tests {
         // Moving like the target again, the same track is the target again.
         let (p, _, _) = at(7 * S, &[track(60.0, 6.5)]);
         assert!((p[0] - 60.0).abs() < 1e-9, "{p:?}");
+    }
+
+    #[test]
+    fn a_followed_track_coasting_for_long_gives_way_to_a_detected_one_where_the_target_is() {
+        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
+            .unwrap();
+        let mut r = Runner::new(10.0);
+        r.load(m);
+        let track = |id, x: f64, y: f64, vx: f64, coasting| Contact {
+            id,
+            class: contact_class::BOAT,
+            confirmed: 1,
+            coasting,
+            position: [x, y],
+            velocity: [vx, 7.0],
+            ..Default::default()
+        };
+        let mut at = |t_ms: u64, contacts: &[Contact]| {
+            let w = World {
+                own: OwnState::default(),
+                contacts,
+                contacts_stamp_ns: t_ms * S / 1000,
+            };
+            r.update(t_ms * S / 1000, &w);
+            r.step_name()
+        };
+        // #3 holds the target (northbound at 7 m/s, 40 m out) for 4 s.
+        for k in 0..=20u64 {
+            at(200 * k, &[track(3, 0.0, 40.0 + 1.4 * k as f64, 0.0, 0)]);
+        }
+        // Then #3 only coasts, drifting east at 2 m/s; #9 has the target's detections. For the
+        // first second #3 is still the target, after it #9 is.
+        let north = |k: u64| 68.0 + 1.4 * k as f64;
+        for k in 1..=6u64 {
+            let coasting = track(3, 0.4 * k as f64, north(k), 2.0, 1);
+            let name = at(4000 + 200 * k, &[coasting, track(9, 0.0, north(k) - 1.0, 0.0, 0)]);
+            assert_eq!(name, if k <= 5 { "follow #3" } else { "follow #9" }, "{k}");
+        }
     }
 
     #[test]
