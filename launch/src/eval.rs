@@ -439,13 +439,14 @@ fn print_report(r: &serde_json::Value) {
     let b = &r["behaviour"];
     if b.is_object() {
         println!(
-            "behaviour: min clearance {} m ({}), collision {}, waypoints {}/{}, follow RMS {} m, rudder reversals {}/min, camera->command p50 {} ms p99 {} ms, contacts {}",
+            "behaviour: min clearance {} m ({}), collision {}, waypoints {}/{}, follow RMS {} m{}, rudder reversals {}/min, camera->command p50 {} ms p99 {} ms, contacts {}",
             f(&b["min_clearance_m"], 1.0),
             b["min_clearance_object"].as_str().unwrap_or("-"),
             b["collision"],
             b["waypoints_reached"],
             b["waypoints"],
             f(&b["follow_rms_m"], 1.0),
+            follow_held(&b["follow_held"]),
             f(&b["rudder_reversals_per_min"], 1.0),
             f(&b["camera_to_command_ms"]["p50"], 1.0),
             f(&b["camera_to_command_ms"]["p99"], 1.0),
@@ -482,4 +483,19 @@ fn print_report(r: &serde_json::Value) {
             f(&s["max_processing_ms"], 1.0)
         );
     }
+}
+
+/// " (held within 5 m over 40.0-72.0 s, RMS 3.40 m)" for a follow run's longest held stretch.
+fn follow_held(h: &serde_json::Value) -> String {
+    let v = |k: &str| h[k].as_f64().unwrap_or(f64::NAN);
+    if !h.is_object() {
+        return String::new();
+    }
+    format!(
+        " (held within {} m over {:.1}-{:.1} s, RMS {:.2} m)",
+        v("within_m"),
+        v("from_s"),
+        v("to_s"),
+        v("rms_m")
+    )
 }

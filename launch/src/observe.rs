@@ -38,6 +38,8 @@ fn footprint_distance(o: &messages::TruthObject, p: [f64; 2]) -> f64 {
 const REVERSAL_MIN_RAD: f64 = 0.03;
 /// Following error is scored once the boat had this long to reach its station (s).
 const FOLLOW_SETTLE_S: f64 = 30.0;
+/// The target counts as held while the follow error stays within this (m).
+const FOLLOW_HELD_M: f64 = 5.0;
 /// Hazard probability (0..=255) from which the overview paints a world-map cell as a hazard.
 pub const HAZARD_PAINT: u8 = 128;
 
@@ -121,8 +123,9 @@ pub struct Observation {
     pub track: Vec<(f64, f64, f64, f64)>,
     first_truth_ns: Option<u64>,
     pub approaches: BTreeMap<u32, Approach>,
-    /// Scored follow errors |distance to target - set distance| after the settling time (m).
-    pub follow_errors_m: Vec<f64>,
+    /// Scored follow errors |distance to target - set distance| after the settling time, with
+    /// their scenario time: (s, m).
+    pub follow_errors_m: Vec<(f64, f64)>,
     follow_target: Option<u32>,
     last_rudder_sign: i8,
     pub rudder_reversals: u64,
@@ -229,7 +232,7 @@ impl Observation {
                 .find(|o| Some(o.id) == self.follow_target);
             if let (Some(target), true) = (target, t >= FOLLOW_SETTLE_S) {
                 let d = (target.pose.position[0] - x).hypot(target.pose.position[1] - y);
-                self.follow_errors_m.push((d - astern).abs());
+                self.follow_errors_m.push((t, (d - astern).abs()));
             }
         }
     }
@@ -325,11 +328,28 @@ impl Observation {
     }
 
     pub fn follow_rms_m(&self) -> Option<f64> {
-        (!self.follow_errors_m.is_empty()).then(|| {
-            (self.follow_errors_m.iter().map(|e| e * e).sum::<f64>()
-                / self.follow_errors_m.len() as f64)
-                .sqrt()
-        })
+        rms(self.follow_errors_m.iter().map(|&(_, e)| e))
+    }
+
+    /// The longest stretch of scored samples with the follow error within [`FOLLOW_HELD_M`]:
+    /// (first, last sample time in s, RMS error over it in m). The whole-run RMS alone cannot
+    /// tell a boat that held the target for three minutes and lost it from one that never had it.
+    pub fn follow_held(&self) -> Option<(f64, f64, f64)> {
+        let e = &self.follow_errors_m;
+        let mut best: Option<(usize, usize)> = None;
+        let mut start = None;
+        for (i, &(_, err)) in e.iter().enumerate() {
+            if err > FOLLOW_HELD_M {
+                start = None;
+                continue;
+            }
+            let s = *start.get_or_insert(i);
+            if best.is_none_or(|(a, b)| e[i].0 - e[s].0 > e[b].0 - e[a].0) {
+                best = Some((s, i));
+            }
+        }
+        let (a, b) = best?;
+        Some((e[a].0, e[b].0, rms(e[a..=b].iter().map(|&(_, e)| e))?))
     }
 
     pub fn reversals_per_minute(&self) -> f64 {
@@ -380,6 +400,12 @@ impl Observation {
             "waypoints_reached": self.waypoints_reached(),
             "waypoints": self.goal.waypoints.len(),
             "follow_rms_m": self.follow_rms_m().map(round2),
+            "follow_held": self.follow_held().map(|(from, to, rms)| json!({
+                "within_m": FOLLOW_HELD_M,
+                "from_s": round2(from),
+                "to_s": round2(to),
+                "rms_m": round2(rms),
+            })),
             "rudder_reversals_per_min": round2(self.reversals_per_minute()),
             "safe_stop_commands": self.safe_stop_commands,
             "blocked_commands": self.blocked_commands,
@@ -387,6 +413,12 @@ impl Observation {
             "tracking": self.tracking.report(self.scenario_time_s() / 60.0),
         })
     }
+}
+
+/// Root mean square of `values`; `None` when there are none.
+fn rms(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let (n, sum) = values.fold((0usize, 0.0), |(n, s), v| (n + 1, s + v * v));
+    (n > 0).then(|| (sum / n as f64).sqrt())
 }
 
 /// ENU centre and hazard of every cell at or above [`HAZARD_PAINT`] (nothing for a grid whose cell
@@ -585,6 +617,36 @@ mod tests {
         }
         assert_eq!(o.follow_errors_m.len(), 30);
         assert!((o.follow_rms_m().unwrap() - 3.0).abs() < 1e-9);
+        let (from, to, rms) = o.follow_held().unwrap();
+        assert!((from - 30.0).abs() < 1e-6 && (to - 59.0).abs() < 1e-6, "{from}-{to}");
+        assert!((rms - 3.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_longest_stretch_within_five_metres_counts_as_held() {
+        let mut o = Observation::new(MissionGoal {
+            follow_astern_m: Some(20.0),
+            ..Default::default()
+        });
+        // Error 1 m over 30-39 s, 9 m over 40-44 s (lost), 2 m over 45-69 s, then 30 m.
+        for k in 0..80 {
+            let t = k as f64;
+            let err = match k {
+                40..=44 => 9.0,
+                45..=69 => 2.0,
+                70.. => 30.0,
+                _ => 1.0,
+            };
+            o.on_truth(&truth(
+                t,
+                [0.0, t],
+                &[(3, truth_class::BOAT, [0.0, t + 20.0 + err])],
+            ));
+        }
+        let (from, to, rms) = o.follow_held().unwrap();
+        assert!((from - 45.0).abs() < 1e-6 && (to - 69.0).abs() < 1e-6, "{from}-{to}");
+        assert!((rms - 2.0).abs() < 1e-9);
+        assert!(o.follow_rms_m().unwrap() > 10.0);
     }
 
     #[test]

@@ -69,7 +69,8 @@ pub struct ArcConfig {
     /// While following, hazards and contacts this close (m) to the target's predicted position are
     /// the target itself (its hull, its wake, a duplicate track) and block no arc ([`Exempt`]).
     pub followed_exempt_m: f64,
-    /// While following, a contact up to this far (m) astern of the target, within
+    /// While following, a contact up to this far (m) astern of the target (twice the usual follow
+    /// distance: tracks on its trail linger and pass the own boat), within
     /// `followed_exempt_m / 2` of its track line and moving like it (or, unless a channel marker,
     /// along its course no faster than it), is its wake and blocks no arc.
     pub followed_wake_m: f64,
@@ -95,7 +96,7 @@ impl Default for ArcConfig {
             near_m: 15.0,
             moving_margin_m: 2.0,
             followed_exempt_m: 8.0,
-            followed_wake_m: 30.0,
+            followed_wake_m: 40.0,
         }
     }
 }
