@@ -618,7 +618,10 @@ mod tests {
         assert_eq!(o.follow_errors_m.len(), 30);
         assert!((o.follow_rms_m().unwrap() - 3.0).abs() < 1e-9);
         let (from, to, rms) = o.follow_held().unwrap();
-        assert!((from - 30.0).abs() < 1e-6 && (to - 59.0).abs() < 1e-6, "{from}-{to}");
+        assert!(
+            (from - 30.0).abs() < 1e-6 && (to - 59.0).abs() < 1e-6,
+            "{from}-{to}"
+        );
         assert!((rms - 3.0).abs() < 1e-9);
     }
 
@@ -644,7 +647,10 @@ mod tests {
             ));
         }
         let (from, to, rms) = o.follow_held().unwrap();
-        assert!((from - 45.0).abs() < 1e-6 && (to - 69.0).abs() < 1e-6, "{from}-{to}");
+        assert!(
+            (from - 45.0).abs() < 1e-6 && (to - 69.0).abs() < 1e-6,
+            "{from}-{to}"
+        );
         assert!((rms - 2.0).abs() < 1e-9);
         assert!(o.follow_rms_m().unwrap() > 10.0);
     }

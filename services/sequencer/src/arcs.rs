@@ -779,7 +779,10 @@ mod tests {
         // Still or slow along its course on water the target has just crossed: map cells it left
         // behind, or a track on them whose velocity is caught between the boat's and none.
         assert!(wake([1.0, 80.0], [0.0, 0.3]), "left behind on its track");
-        assert!(wake([1.0, 80.0], [1.3, 2.3]), "a trail track slower than the boat");
+        assert!(
+            wake([1.0, 80.0], [1.3, 2.3]),
+            "a trail track slower than the boat"
+        );
         assert!(
             !t.is_wake([1.0, 80.0], [0.0, 0.0], false, 30.0, 4.0),
             "a channel marker is never wake"

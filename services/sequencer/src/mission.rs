@@ -510,7 +510,8 @@ impl Lock {
         own: [f64; 2],
     ) -> Option<&'a Contact> {
         let coasted_out = |c: &Contact| {
-            c.coasting == 1 && stamp_ns.saturating_sub(self.detected_ns) as f64 / NS > LOCK_MAX_COAST_S
+            c.coasting == 1
+                && stamp_ns.saturating_sub(self.detected_ns) as f64 / NS > LOCK_MAX_COAST_S
         };
         if let Some(c) = contacts.iter().find(|c| c.id == self.id && !coasted_out(c)) {
             let settled = stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S;
@@ -1358,7 +1359,10 @@ mod tests {
         let north = |k: u64| 68.0 + 1.4 * k as f64;
         for k in 1..=6u64 {
             let coasting = track(3, 0.4 * k as f64, north(k), 2.0, 1);
-            let name = at(4000 + 200 * k, &[coasting, track(9, 0.0, north(k) - 1.0, 0.0, 0)]);
+            let name = at(
+                4000 + 200 * k,
+                &[coasting, track(9, 0.0, north(k) - 1.0, 0.0, 0)],
+            );
             assert_eq!(name, if k <= 5 { "follow #3" } else { "follow #9" }, "{k}");
         }
     }
