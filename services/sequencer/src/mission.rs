@@ -437,7 +437,7 @@ fn ahead(p: [f64; 2], course: f64, d: f64) -> [f64; 2] {
 const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows) ...
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
-/// ... and moves like it did: within this much (m/s) of its last velocity. A false track on the
+/// ... and moves like it did: within this much (m/s) of its smoothed velocity. A false track on the
 /// water nearby stands still; a duplicate's junk velocity is far off.
 const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
 /// Among those, the best has the least distance plus this many seconds times the velocity
@@ -501,8 +501,9 @@ impl Lock {
     }
 
     /// The contact that continues this lock: the same id while it still moves like the target
-    /// (whatever the classifier now calls it), or a new track where the target went, moving like
-    /// it and not hanging on the own boat at `own`.
+    /// (whatever the classifier now calls it) and has not only coasted for over
+    /// [`LOCK_MAX_COAST_S`], or else a new track where the target went, moving like it and not
+    /// hanging on the own boat at `own`.
     fn find<'a>(
         &self,
         contacts: &'a [Contact],
