@@ -487,10 +487,10 @@ fn print_report(r: &serde_json::Value) {
 
 /// " (held within 5 m over 40.0-72.0 s, RMS 3.40 m)" for a follow run's longest held stretch.
 fn follow_held(h: &serde_json::Value) -> String {
-    let v = |k: &str| h[k].as_f64().unwrap_or(f64::NAN);
     if !h.is_object() {
         return String::new();
     }
+    let v = |k: &str| h[k].as_f64().unwrap_or(f64::NAN);
     format!(
         " (held within {} m over {:.1}-{:.1} s, RMS {:.2} m)",
         v("within_m"),

@@ -279,25 +279,23 @@ impl Sequencer {
                     contacts_stamp_ns: self.contacts.hdr.stamp_ns,
                 };
                 let directive = self.runner.update(now, &world);
-                let (exempt, target) = match directive {
+                let target = match directive {
                     Directive::Follow {
                         position,
                         velocity,
                         course,
                         ..
-                    } => (
-                        Some(Exempt {
-                            centre: position,
-                            radius_m: self.arcs.config().followed_exempt_m,
-                        }),
-                        Some(FollowedTarget {
-                            position,
-                            velocity,
-                            course,
-                        }),
-                    ),
-                    _ => (None, None),
+                    } => Some(FollowedTarget {
+                        position,
+                        velocity,
+                        course,
+                    }),
+                    _ => None,
                 };
+                let exempt = target.map(|t| Exempt {
+                    centre: t.position,
+                    radius_m: self.arcs.config().followed_exempt_m,
+                });
                 let mut blocked = self.arcs.blocked_except(
                     &self.hazards,
                     self.map_origin,
@@ -309,7 +307,6 @@ impl Sequencer {
                     &self.arcs,
                     &self.contacts,
                     self.runner.followed_contact(),
-                    exempt,
                     target,
                     &mut self.moving,
                     &own,
@@ -444,14 +441,13 @@ const BRAKE_UNTIL_MPS: f64 = 0.3;
 
 /// Arcs that would meet a contact: a moving one where it will be (the map holds where it is now), a
 /// slow, young, marker or extended one where it is (the tracker may hold a buoy before the map
-/// confirms it at the arc threshold). Confirmed tracks only, not false alarms, not the contact being followed nor its
-/// wake, not shore pieces larger than `contact_max_extent_m` (the map has those).
-#[allow(clippy::too_many_arguments)]
+/// confirms it at the arc threshold). Confirmed tracks only, not false alarms, not the contact
+/// being followed, nor one within `followed_exempt_m` of the followed target or on its wake, not
+/// shore pieces larger than `contact_max_extent_m` (the map has those).
 fn blocked_by_contacts(
     arcs: &ArcSet,
     contacts: &ContactList,
     followed: Option<u32>,
-    exempt: Option<Exempt>,
     target: Option<FollowedTarget>,
     moving: &mut Vec<MovingObstacle>,
     own: &OwnState,
@@ -468,18 +464,16 @@ fn blocked_by_contacts(
                 c.confirmed == 1
                     && c.class != contact_class::FALSE_ALARM
                     && Some(c.id) != followed
-                    && !exempt.is_some_and(|e| {
-                        (c.position[0] - e.centre[0]).hypot(c.position[1] - e.centre[1])
-                            < e.radius_m
-                    })
                     && !target.is_some_and(|t| {
-                        t.is_wake(
-                            c.position,
-                            c.velocity,
-                            c.class != contact_class::CHANNEL_MARKER,
-                            cfg.followed_wake_m,
-                            0.5 * cfg.followed_exempt_m,
-                        )
+                        (c.position[0] - t.position[0]).hypot(c.position[1] - t.position[1])
+                            < cfg.followed_exempt_m
+                            || t.is_wake(
+                                c.position,
+                                c.velocity,
+                                c.class != contact_class::CHANNEL_MARKER,
+                                cfg.followed_wake_m,
+                                0.5 * cfg.followed_exempt_m,
+                            )
                     })
                     && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
             })

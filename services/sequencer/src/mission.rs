@@ -437,8 +437,8 @@ fn ahead(p: [f64; 2], course: f64, d: f64) -> [f64; 2] {
 const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows) ...
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
-/// ... and moves like it did: within this much (m/s) of its smoothed velocity. A false track on the
-/// water nearby stands still; a duplicate's junk velocity is far off.
+/// ... and moves like it did: within this much (m/s) of its smoothed velocity. A false track on
+/// the water nearby stands still; a duplicate's junk velocity is far off.
 const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
 /// Among those, the best has the least distance plus this many seconds times the velocity
 /// difference ...
@@ -448,7 +448,7 @@ const REACQUIRE_VELOCITY_WEIGHT_S: f64 = 3.0;
 /// classifier often calls a false alarm; its motion is the better witness, so the class only
 /// breaks ties.
 const REACQUIRE_FALSE_ALARM_PENALTY_M: f64 = 10.0;
-/// A new track the classifier calls a false alarm must also move closer to the target's last
+/// A new track the classifier calls a false alarm must also move closer to the target's smoothed
 /// velocity than this (m/s): sun glint near a lost target otherwise drifts at a few m/s in about
 /// its direction, and following it slows the boat until the target is gone.
 const REACQUIRE_FALSE_ALARM_VELOCITY_MPS: f64 = 1.5;
@@ -822,12 +822,21 @@ impl Runner {
                 // position when the step gives it: a boat seen from astern is tracked at its stern.
                 let reference_m = 0.5 * target_length_m;
                 let max_speed_mps = max_speed_mps.unwrap_or(self.max_speed);
-                let Some(c) = found else {
-                    let Some(lock) = self.lock else {
-                        // Not seen yet: wait stopped; the step timeout bounds the wait.
-                        return Some(Directive::Hold);
-                    };
-                    if lock.unseen_s(now) > *lost_timeout_s {
+                let stamp = world.contacts_stamp_ns;
+                let lock = match (found, self.lock) {
+                    (Some(c), Some(lock)) => lock.seen(c, stamp),
+                    (Some(c), None) => Lock {
+                        id: c.id,
+                        course: course_of(c.velocity).unwrap_or(own.yaw),
+                        last_seen_ns: stamp,
+                        locked_ns: stamp,
+                        detected_ns: stamp,
+                        position: c.position,
+                        velocity: c.velocity,
+                    },
+                    // Not seen yet: wait stopped; the step timeout bounds the wait.
+                    (None, None) => return Some(Directive::Hold),
+                    (None, Some(lock)) if lock.unseen_s(now) > *lost_timeout_s => {
                         self.state = RunState::Failed(format!(
                             "step {} (follow): contact #{} lost for more than {lost_timeout_s} s",
                             self.step + 1,
@@ -837,29 +846,10 @@ impl Runner {
                     }
                     // Lost for a moment: keep after where it is predicted to be, so it is still
                     // in view (and can be taken up again) when the tracker finds it again.
-                    let p = lock.predicted(now);
-                    return Some(Directive::Follow {
-                        position: ahead(p, lock.course, reference_m),
-                        velocity: lock.velocity,
-                        course: lock.course,
-                        offset,
-                        max_speed_mps,
-                    });
-                };
-                let lock = match self.lock {
-                    Some(lock) => lock.seen(c, world.contacts_stamp_ns),
-                    None => Lock {
-                        id: c.id,
-                        course: course_of(c.velocity).unwrap_or(own.yaw),
-                        last_seen_ns: world.contacts_stamp_ns,
-                        locked_ns: world.contacts_stamp_ns,
-                        detected_ns: world.contacts_stamp_ns,
-                        position: c.position,
-                        velocity: c.velocity,
-                    },
+                    (None, Some(lock)) => lock,
                 };
                 self.lock = Some(lock);
-                // The list is as old as its stamp: predict the target to now.
+                // Predicted from when it was last seen (the contact list's stamp) to now.
                 let p = lock.predicted(now);
                 Some(Directive::Follow {
                     position: ahead(p, lock.course, reference_m),
