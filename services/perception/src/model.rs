@@ -5,7 +5,8 @@
 //! decision surface on standardized features separates hazard from wave and matcher noise well; the
 //! output is a calibrated probability (what `MapCell::hazard` means); the model is ten numbers in a
 //! reviewable JSON file; training is convex and deterministic (same data, same model) and takes
-//! seconds. A tree ensemble would fit the training scenarios more closely but is larger, less
+//! seconds. Where one feature matters in a way a line cannot express, a hinge of it is a feature of
+//! its own ([`LIFT_HINGE_M`]). A tree ensemble would fit the training scenarios more closely but is larger, less
 //! calibrated, and harder to check by eye with the little labelled data the simulator gives.
 
 use serde::{Deserialize, Serialize};
@@ -25,8 +26,16 @@ pub const FEATURES: [&str; N_FEATURES] = [
     "history",
     "neighbour_support",
     "water_margin_px",
+    "lifted_height_m",
 ];
-pub const N_FEATURES: usize = 9;
+pub const N_FEATURES: usize = 10;
+
+/// `lifted_height_m` is how far a cell's lowest point stands above this height (m), 0 below it.
+/// Waves and matcher noise always leave some points near the water; a cell whose every point is
+/// this high is a surface standing clear of it (a hull side, a superstructure, a pylon). A linear
+/// model cannot say "min height matters a lot above 1 m and little below", and without this hinge
+/// it traded that evidence away against `water_margin_px`, rating a boat 15-25 m ahead below 0.5.
+pub const LIFT_HINGE_M: f32 = 1.0;
 
 pub type Features = [f32; N_FEATURES];
 

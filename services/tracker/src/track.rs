@@ -43,7 +43,11 @@ pub struct TrackerConfig {
     /// A track is confirmed after `confirm_hits` detections in its last `confirm_window` maps.
     pub confirm_hits: u32,
     pub confirm_window: u32,
-    /// A confirmed track is deleted after coasting this long (s).
+    /// A confirmed track is deleted after coasting as long as it had been seen (from birth to its
+    /// last detection), but at least `min_coast_s` and at most `max_coast_s`. A track confirmed
+    /// from a second of glint or wake is gone a moment after the glint; one that has held an
+    /// object for seconds keeps it through a gap as long as `max_coast_s`.
+    pub min_coast_s: f64,
     pub max_coast_s: f64,
     /// A tentative track is deleted after this many consecutive misses.
     pub tentative_misses: u32,
@@ -79,6 +83,7 @@ impl Default for TrackerConfig {
             gate_chi2: 9.21,
             confirm_hits: 3,
             confirm_window: 5,
+            min_coast_s: 0.4,
             max_coast_s: 2.0,
             tentative_misses: 2,
         }
@@ -160,10 +165,14 @@ impl Tracker {
             cfg.cross_sigma[0],
             cfg.initial_speed_sigma,
             cfg.gate_chi2,
+            cfg.min_coast_s,
             cfg.max_coast_s,
         ];
         if positive.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
             return bad("noise, gate and coast settings must be > 0");
+        }
+        if cfg.min_coast_s > cfg.max_coast_s {
+            return bad("min_coast_s must not exceed max_coast_s");
         }
         if !(cfg.link_m > 0.0 && cfg.link_m <= 10.0) {
             return bad("link_m must be within (0, 10]");
@@ -297,13 +306,18 @@ impl Tracker {
                 None => t.misses += 1,
             }
         }
-        let max_coast_ns = (self.cfg.max_coast_s * 1e9) as u64;
+        let coast_ns = |s: f64| (s * 1e9) as u64;
+        let (min_coast_ns, max_coast_ns) = (
+            coast_ns(self.cfg.min_coast_s),
+            coast_ns(self.cfg.max_coast_s),
+        );
         let tentative_misses = self.cfg.tentative_misses;
         self.tracks.retain(|t| {
             let inside = g.cell_of(t.x[0], t.x[1]).is_some();
             inside
                 && if t.confirmed {
-                    stamp - t.last_hit_ns <= max_coast_ns
+                    let seen_ns = t.last_hit_ns.saturating_sub(t.born_ns);
+                    stamp - t.last_hit_ns <= seen_ns.clamp(min_coast_ns, max_coast_ns)
                 } else {
                     t.misses < tentative_misses
                 }

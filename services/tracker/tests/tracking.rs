@@ -271,3 +271,38 @@ fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
         .collect();
     assert!(confirmed.is_empty(), "{confirmed:?}");
 }
+
+#[test]
+fn a_track_seen_for_a_moment_coasts_briefly_and_one_seen_for_long_coasts_through_a_gap() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let confirmed_near = |list: &ContactList, at: [f64; 2]| {
+        list.as_slice()
+            .iter()
+            .any(|c| c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 3.0)
+    };
+    // 5 Hz maps. A moored boat at (-20, 20) in every map of the first 5 s; a glint-like blob at
+    // (20, 20) in 4 maps (0.6 s from birth to last sighting). Then 1.4 s with neither.
+    let (moored, glint) = ([-20.0, 20.0], [20.0, 20.0]);
+    for k in 0..33u64 {
+        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        if k < 25 {
+            paint_hull_rim(&grid, &mut cells, moored, [1.0, 0.0], 150);
+        }
+        if (10..14).contains(&k) {
+            paint_hull_rim(&grid, &mut cells, glint, [1.0, 0.0], 150);
+        }
+        let hdr = map_header(grid, k, 200_000_000);
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        if k == 13 {
+            assert!(confirmed_near(&list, glint), "{:?}", list.as_slice());
+        }
+        if k == 17 {
+            // 0.8 s after its last sighting: more than it was seen (0.6 s).
+            assert!(!confirmed_near(&list, glint), "{:?}", list.as_slice());
+        }
+    }
+    // 1.6 s after its last sighting, well under the 2 s a track seen for 5 s may coast.
+    assert!(confirmed_near(&list, moored), "{:?}", list.as_slice());
+}
