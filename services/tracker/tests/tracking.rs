@@ -306,3 +306,31 @@ fn a_track_seen_for_a_moment_coasts_briefly_and_one_seen_for_long_coasts_through
     // 1.6 s after its last sighting, well under the 2 s a track seen for 5 s may coast.
     assert!(confirmed_near(&list, moored), "{:?}", list.as_slice());
 }
+
+#[test]
+fn an_inconsistent_configuration_is_refused_with_the_reason() {
+    let refused = |cfg: TrackerConfig| match Tracker::new(cfg, model()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("accepted"),
+    };
+    let e = refused(TrackerConfig {
+        min_coast_s: 3.0,
+        max_coast_s: 2.0,
+        ..TrackerConfig::default()
+    });
+    assert!(e.contains("min_coast_s must not exceed max_coast_s"), "{e}");
+    let e = refused(TrackerConfig {
+        min_coast_s: f64::NAN,
+        ..TrackerConfig::default()
+    });
+    assert!(e.contains("coast settings must be > 0"), "{e}");
+    let e = refused(TrackerConfig {
+        confirm_hits: 6,
+        confirm_window: 5,
+        ..TrackerConfig::default()
+    });
+    assert!(
+        e.contains("confirm_hits must not exceed confirm_window"),
+        "{e}"
+    );
+}
