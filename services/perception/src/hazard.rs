@@ -11,9 +11,9 @@
 //! many metres of solid surface stand there; the elevated fraction; `history`, the decayed share
 //! of this head's recent frames with elevated points at this world cell (0 for a first sighting);
 //! the share of elevated 8-neighbours; `water_margin_px`, the disparity error that would lift water
-//! on the ray of the highest point to its height; `lifted_height_m`, how far the lowest point stands
-//! above [`crate::model::LIFT_HINGE_M`]. Cost: lethal (254) from
-//! `cost.lethal_probability`, below it linear in the probability; unobserved cells 255.
+//! on the ray of the highest point to its height; `lifted_height_m`, how far the lowest point
+//! stands above [`crate::model::LIFT_HINGE_M`]. Cost: lethal (254) from `cost.lethal_probability`,
+//! below it linear in the probability; unobserved cells 255.
 //!
 //! Buffers are sized at the first frame of a head (warm-up) and reused; a frame allocates nothing.
 //! Heights are taken relative to the frame's own water level: a residual plane fitted to the

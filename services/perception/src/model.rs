@@ -3,11 +3,12 @@
 //! Why logistic regression: the features are already physical and monotone in "how much solid
 //! surface stands above the water here" (height, spread, vertical extent, persistence), so a linear
 //! decision surface on standardized features separates hazard from wave and matcher noise well; the
-//! output is a calibrated probability (what `MapCell::hazard` means); the model is ten numbers in a
-//! reviewable JSON file; training is convex and deterministic (same data, same model) and takes
-//! seconds. Where one feature matters in a way a line cannot express, a hinge of it is a feature of
-//! its own ([`LIFT_HINGE_M`]). A tree ensemble would fit the training scenarios more closely but is larger, less
-//! calibrated, and harder to check by eye with the little labelled data the simulator gives.
+//! output is a calibrated probability (what `MapCell::hazard` means); the model is a weight per
+//! feature and a bias in a reviewable JSON file; training is convex and deterministic (same data,
+//! same model) and takes seconds. Where one feature matters in a way a line cannot express, a hinge
+//! of it is a feature of its own ([`LIFT_HINGE_M`]). A tree ensemble would fit the training
+//! scenarios more closely but is larger, less calibrated, and harder to check by eye with the
+//! little labelled data the simulator gives.
 
 use serde::{Deserialize, Serialize};
 use std::path::Path;
