@@ -422,6 +422,11 @@ const CONTINUE_VELOCITY_MPS: f64 = 2.5;
 /// while a new track held the boat itself.
 const LOCK_MAX_COAST_S: f64 = 1.0;
 
+/// A target followed where it is predicted is followed this much (m) farther astern per second
+/// unseen. The smoothed velocity is a few tenths of a m/s off: 0.7 m/s too fast put the boat 11 m
+/// (centre to centre) behind a target it meant to keep 20 m behind, after 8 s unseen.
+const LOST_BACKOFF_MPS: f64 = 1.0;
+
 /// Longest target a follow step accepts (m).
 const MAX_TARGET_LENGTH_M: f64 = 100.0;
 
@@ -814,10 +819,6 @@ impl Runner {
                     }
                     (None, None, None) => None,
                 };
-                let offset = FollowOffset {
-                    astern_m: *astern_m,
-                    port_m: *port_m,
-                };
                 // The offset is measured from half the target's length ahead of the tracked
                 // position when the step gives it: a boat seen from astern is tracked at its stern.
                 let reference_m = 0.5 * target_length_m;
@@ -851,6 +852,17 @@ impl Runner {
                 self.lock = Some(lock);
                 // Predicted from when it was last seen (the contact list's stamp) to now.
                 let p = lock.predicted(now);
+                // While it is unseen, the goal falls back as far as the prediction may have run
+                // ahead of the target.
+                let unseen_s = if found.is_some() {
+                    0.0
+                } else {
+                    lock.unseen_s(now)
+                };
+                let offset = FollowOffset {
+                    astern_m: astern_m + LOST_BACKOFF_MPS * unseen_s,
+                    port_m: *port_m,
+                };
                 Some(Directive::Follow {
                     position: ahead(p, lock.course, reference_m),
                     velocity: lock.velocity,
@@ -1146,9 +1158,15 @@ mod tests {
         };
         assert!(matches!(r.update(3 * S, &w), Directive::Follow { .. }));
         assert_eq!(r.step_name(), "follow #11");
-        // Target gone past the lost timeout: the step fails.
+        // Target gone past the lost timeout: the step fails. Until then it is followed farther
+        // astern the longer it is unseen: the prediction may have run ahead of it.
         let w = World { contacts: &[], ..w };
-        assert!(matches!(r.update(4 * S, &w), Directive::Follow { .. }));
+        let astern = |d: Directive| match d {
+            Directive::Follow { offset, .. } => offset.astern_m,
+            d => panic!("{d:?}"),
+        };
+        assert_eq!(astern(r.update(4 * S, &w)), 20.0 + LOST_BACKOFF_MPS);
+        assert_eq!(astern(r.update(8 * S, &w)), 20.0 + 5.0 * LOST_BACKOFF_MPS);
         assert_eq!(r.update(14 * S, &w), Directive::Idle);
         assert!(matches!(r.state(), RunState::Failed(why) if why.contains("lost")));
     }

@@ -9,6 +9,12 @@
 //! last frames, spread along the boat's path, still forms one detection. Elsewhere the threshold,
 //! and so the rejection of one-frame stereo noise, is unchanged. Buffers are kept between maps (no
 //! allocation once they have grown to the map size).
+//!
+//! A boat seen from astern at speed moves a few cells per frame, so even its newest cells carry
+//! one observation in the average of several and can stay below the guided threshold. Inside a
+//! window a cell therefore also joins from a lower hazard when its latest observation stood well
+//! above the water ([`GuideThresholds::lifted_height_cm`]): sun glint and wave crests lie flat,
+//! a hull and a cabin do not.
 
 use messages::{GridGeometry, MapCell};
 
@@ -33,6 +39,17 @@ pub struct Detection {
     pub cells: u32,
 }
 
+/// What a cell inside a guide window needs to join a component (see [`Detector::guide`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuideThresholds {
+    /// Any cell with hazard >= this (0..=255).
+    pub hazard: u8,
+    /// A cell whose latest observation stood at least `lifted_height_cm` above the water, from
+    /// hazard >= this.
+    pub lifted_hazard: u8,
+    pub lifted_height_cm: i16,
+}
+
 /// What [`Detector::detect`] looks for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectParams {
@@ -54,8 +71,8 @@ pub struct Detector {
     /// Cells marked with `guide_pass` lie in a guide window of the next `detect`.
     guide_mark: Vec<u32>,
     guide_pass: u32,
-    /// Threshold inside the guide windows; `None` once the windows have been used.
-    guided_threshold: Option<u8>,
+    /// Thresholds inside the guide windows; `None` once the windows have been used.
+    guided: Option<GuideThresholds>,
 }
 
 impl Detector {
@@ -63,12 +80,12 @@ impl Detector {
         Self::default()
     }
 
-    /// Lowers the threshold of the next [`Detector::detect`] to `threshold` inside the discs
+    /// Lowers the threshold of the next [`Detector::detect`] to `thresholds` inside the discs
     /// (ENU centre, radius in m) of `grid`. Applies to that one call only.
     pub fn guide(
         &mut self,
         grid: &GridGeometry,
-        threshold: u8,
+        thresholds: GuideThresholds,
         discs: impl IntoIterator<Item = ([f64; 2], f64)>,
     ) {
         let (w, h) = (grid.width as usize, grid.height as usize);
@@ -78,7 +95,7 @@ impl Detector {
             self.guide_pass = 0;
         }
         self.guide_pass = self.guide_pass.wrapping_add(1).max(1);
-        self.guided_threshold = Some(threshold);
+        self.guided = Some(thresholds);
         let r = grid.resolution_m;
         let west = grid.center[0] - w as f64 / 2.0 * r;
         let south = grid.center[1] - h as f64 / 2.0 * r;
@@ -133,16 +150,25 @@ impl Detector {
         self.pass = self.pass.wrapping_add(1).max(1);
         let pass = self.pass;
         let thr = threshold.max(1);
-        // Guide windows (one-shot): cells marked for this call join from the lower threshold.
+        // Guide windows (one-shot): cells marked for this call join from the lower thresholds.
         let guided = self
-            .guided_threshold
+            .guided
             .take()
-            .filter(|_| self.guide_mark.len() == w * h)
-            .map(|g| g.clamp(1, thr));
+            .filter(|_| self.guide_mark.len() == w * h);
         let (marks, mark) = (&self.guide_mark, self.guide_pass);
         let on = |i: usize| {
-            let hz = cells[i].hazard;
-            hz >= thr || guided.is_some_and(|g| hz >= g && marks[i] == mark)
+            let MapCell {
+                hazard: hz,
+                max_height_cm,
+                ..
+            } = cells[i];
+            hz >= thr
+                || guided.is_some_and(|g| {
+                    marks[i] == mark
+                        && hz >= 1
+                        && (hz >= g.hazard
+                            || (hz >= g.lifted_hazard && max_height_cm >= g.lifted_height_cm))
+                })
         };
         let r = grid.resolution_m;
         for start in 0..w * h {
@@ -305,7 +331,7 @@ mod tests {
         d.detect(&grid, &cells, &params, &mut out);
         assert!(out.is_empty());
         // A track is expected at the west strip: it is detected whole, the east one is not.
-        d.guide(&grid, 64, [([-5.0, 0.0], 3.0)]);
+        d.guide(&grid, guided(64), [([-5.0, 0.0], 3.0)]);
         d.detect(&grid, &cells, &params, &mut out);
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].cells, 5);
@@ -315,7 +341,76 @@ mod tests {
         d.detect(&grid, &cells, &params, &mut out);
         assert!(out.is_empty());
         // A guided threshold above the strip's evidence finds nothing either.
-        d.guide(&grid, 100, [([-5.0, 0.0], 3.0)]);
+        d.guide(&grid, guided(100), [([-5.0, 0.0], 3.0)]);
+        d.detect(&grid, &cells, &params, &mut out);
+        assert!(out.is_empty());
+    }
+
+    /// Guide thresholds without the lifted rule.
+    fn guided(hazard: u8) -> GuideThresholds {
+        GuideThresholds {
+            hazard,
+            lifted_hazard: hazard,
+            lifted_height_cm: 0,
+        }
+    }
+
+    #[test]
+    fn inside_a_guide_window_a_lifted_cell_joins_from_a_lower_hazard_and_a_flat_one_does_not() {
+        let grid = GridGeometry {
+            width: 40,
+            height: 20,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        // A stern seen once in the average (hazard 70, 1.6 m above the water) beside glint of the
+        // same hazard lying on the water, both in one window.
+        let mut cells = vec![MapCell::default(); 800];
+        for x in [8usize, 9, 10, 11] {
+            cells[10 * 40 + x] = MapCell {
+                hazard: 70,
+                max_height_cm: 160,
+                ..MapCell::default()
+            };
+        }
+        for x in [20usize, 21, 22, 23] {
+            cells[10 * 40 + x] = MapCell {
+                hazard: 70,
+                max_height_cm: 10,
+                ..MapCell::default()
+            };
+        }
+        let params = DetectParams {
+            threshold: 128,
+            min_cells: 1,
+            max: 16,
+            link_cells: 1,
+        };
+        let thresholds = GuideThresholds {
+            hazard: 96,
+            lifted_hazard: 64,
+            lifted_height_cm: 100,
+        };
+        let mut d = Detector::new();
+        let mut out = Vec::new();
+        d.guide(&grid, thresholds, [([-2.0, 0.0], 8.0)]);
+        d.detect(&grid, &cells, &params, &mut out);
+        assert_eq!(out.len(), 1, "{out:?}");
+        assert_eq!(out[0].cells, 4);
+        assert!((out[0].position[0] + 5.0).abs() < 1e-9, "{:?}", out[0]);
+        assert!((out[0].height - 1.6).abs() < 1e-9);
+        // Outside a window the lifted cells are below the threshold like any other.
+        d.detect(&grid, &cells, &params, &mut out);
+        assert!(out.is_empty());
+        // Below the lifted threshold they do not join either.
+        d.guide(
+            &grid,
+            GuideThresholds {
+                lifted_hazard: 71,
+                ..thresholds
+            },
+            [([-2.0, 0.0], 8.0)],
+        );
         d.detect(&grid, &cells, &params, &mut out);
         assert!(out.is_empty());
     }

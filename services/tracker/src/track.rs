@@ -4,7 +4,7 @@
 //! deletion after a coast limit.
 
 use crate::classify::Model;
-use crate::detect::{DetectParams, Detection, Detector};
+use crate::detect::{DetectParams, Detection, Detector, GuideThresholds};
 use messages::{
     contact_class, Contact, ContactList, GridGeometry, Header, MapCell, WorldMapHeader,
     MAX_CONTACTS,
@@ -21,6 +21,11 @@ pub struct TrackerConfig {
     /// Around a confirmed track's predicted position, cells with hazard >= this already form
     /// detections (see `detect`'s guided detection); equal to `hazard_threshold` turns it off.
     pub guided_hazard_threshold: u8,
+    /// Inside a guide window, a cell whose latest observation stood at least
+    /// `guided_lifted_height_m` above the water joins from hazard >= this: the stern of a boat
+    /// seen from astern moves cells every frame and so never gathers a full average there.
+    pub guided_lifted_hazard_threshold: u8,
+    pub guided_lifted_height_m: f64,
     /// The guide window reaches this far (m) beyond half a track's diagonal extent.
     pub guide_margin_m: f64,
     /// Smallest component kept (cells).
@@ -72,6 +77,10 @@ impl Default for TrackerConfig {
             // Between the open-water background of the world map (mostly below 96 in the
             // simulated sets) and the 128 a cell needs from its history alone.
             guided_hazard_threshold: 96,
+            // One observation of a hull in a three-observation average is about a third of its
+            // hazard; a metre is above any wave of the sets and below any hull.
+            guided_lifted_hazard_threshold: 64,
+            guided_lifted_height_m: 1.0,
             guide_margin_m: 2.0,
             min_cells: 1,
             link_m: 0.5,
@@ -180,6 +189,14 @@ impl Tracker {
         if cfg.guided_hazard_threshold > cfg.hazard_threshold {
             return bad("guided_hazard_threshold must not exceed hazard_threshold");
         }
+        if cfg.guided_lifted_hazard_threshold > cfg.guided_hazard_threshold {
+            return bad("guided_lifted_hazard_threshold must not exceed guided_hazard_threshold");
+        }
+        if !(cfg.guided_lifted_height_m.is_finite()
+            && (0.0..=20.0).contains(&cfg.guided_lifted_height_m))
+        {
+            return bad("guided_lifted_height_m must be within [0, 20]");
+        }
         if !(cfg.guide_margin_m.is_finite() && (0.0..=20.0).contains(&cfg.guide_margin_m)) {
             return bad("guide_margin_m must be within [0, 20]");
         }
@@ -251,9 +268,14 @@ impl Tracker {
         // the track walk on at its velocity: hence also the guided threshold above the map's
         // background and the smallest size of a weak component.
         let guides = |t: &Track| t.confirmed && t.x[2].hypot(t.x[3]) >= GUIDE_MIN_SPEED_MPS;
+        let thresholds = GuideThresholds {
+            hazard: self.cfg.guided_hazard_threshold,
+            lifted_hazard: self.cfg.guided_lifted_hazard_threshold,
+            lifted_height_cm: (self.cfg.guided_lifted_height_m * 100.0).round() as i16,
+        };
         self.detector.guide(
             &g,
-            self.cfg.guided_hazard_threshold,
+            thresholds,
             self.tracks.iter().filter(|t| guides(t)).map(|t| {
                 // Half the diagonal, capped: a bank-sized track must not lower the threshold
                 // over a whole shore.

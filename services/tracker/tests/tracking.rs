@@ -180,10 +180,10 @@ fn a_boat_mapped_as_hull_and_wake_blobs_is_one_track() {
 
 /// Runs a 6 m x 2.5 m hull north at 7 m/s, 5 Hz, for 8 s. For the first 2 s the map holds it at
 /// confirmed strength; after that, as in a world map that averages three frames while the boat
-/// moves its own length in two, only weak evidence shows where it was this frame (hazard 110) and
-/// the last (100).
+/// moves its own length in two, only weak evidence shows where it was the last frame (`weak[0]`)
+/// and this one (`weak[1]`), 1.5 m above the water.
 /// Returns the ids of the confirmed tracks at the end and the speed of the first one.
-fn fast_boat_in_an_averaged_map(cfg: TrackerConfig) -> (Vec<u32>, f64, u32) {
+fn fast_boat_in_an_averaged_map(cfg: TrackerConfig, weak: [u8; 2]) -> (Vec<u32>, f64, u32) {
     let mut t = Tracker::new(cfg, model()).unwrap();
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
@@ -194,7 +194,7 @@ fn fast_boat_in_an_averaged_map(cfg: TrackerConfig) -> (Vec<u32>, f64, u32) {
         let footprints: &[(f64, u8)] = if k < 10 {
             &[(bow(k), 150)]
         } else {
-            &[(bow(k - 1), 100), (bow(k), 110)]
+            &[(bow(k - 1), weak[0]), (bow(k), weak[1])]
         };
         for &(bow_y, hazard) in footprints {
             paint_hull_rim(&grid, &mut cells, [0.0, bow_y - 3.0], [0.0, 1.0], hazard);
@@ -219,15 +219,32 @@ fn fast_boat_in_an_averaged_map(cfg: TrackerConfig) -> (Vec<u32>, f64, u32) {
 
 #[test]
 fn a_fast_boat_the_map_holds_only_at_one_frame_of_evidence_keeps_its_track() {
-    let (ids, speed, first) = fast_boat_in_an_averaged_map(TrackerConfig::default());
+    let (ids, speed, first) = fast_boat_in_an_averaged_map(TrackerConfig::default(), [100, 110]);
     assert_eq!(ids, vec![first], "the track was not kept");
     assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed}");
     // Without guided detection the same maps lose it: the evidence is below the threshold.
     let off = TrackerConfig {
         guided_hazard_threshold: 128,
+        guided_lifted_hazard_threshold: 128,
         ..TrackerConfig::default()
     };
-    let (ids, _, _) = fast_boat_in_an_averaged_map(off);
+    let (ids, _, _) = fast_boat_in_an_averaged_map(off, [100, 110]);
+    assert!(ids.is_empty(), "{ids:?}");
+}
+
+#[test]
+fn a_hull_seen_once_in_the_average_keeps_its_track_because_it_stands_above_the_water() {
+    // One observation of the hull in an average of three: below the guided threshold (96).
+    let weak = [70, 75];
+    let (ids, speed, first) = fast_boat_in_an_averaged_map(TrackerConfig::default(), weak);
+    assert_eq!(ids, vec![first], "the track was not kept");
+    assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed}");
+    // Without the lifted rule the same maps lose it.
+    let flat_only = TrackerConfig {
+        guided_lifted_hazard_threshold: 96,
+        ..TrackerConfig::default()
+    };
+    let (ids, _, _) = fast_boat_in_an_averaged_map(flat_only, weak);
     assert!(ids.is_empty(), "{ids:?}");
 }
 
@@ -333,4 +350,17 @@ fn an_inconsistent_configuration_is_refused_with_the_reason() {
         e.contains("confirm_hits must not exceed confirm_window"),
         "{e}"
     );
+    let e = refused(TrackerConfig {
+        guided_lifted_hazard_threshold: 100,
+        ..TrackerConfig::default()
+    });
+    assert!(
+        e.contains("guided_lifted_hazard_threshold must not exceed"),
+        "{e}"
+    );
+    let e = refused(TrackerConfig {
+        guided_lifted_height_m: f64::INFINITY,
+        ..TrackerConfig::default()
+    });
+    assert!(e.contains("guided_lifted_height_m must be within"), "{e}");
 }
