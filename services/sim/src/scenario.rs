@@ -341,6 +341,11 @@ fn white() -> [f64; 3] {
     [0.8, 0.8, 0.78]
 }
 
+/// A 9 m boat at 7 m/s turns at about 13 deg/s on this radius (m).
+fn default_turn_radius() -> f64 {
+    30.0
+}
+
 /// Scripted motion of a boat. Waypoint tracks start at the boat's `position`.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -348,6 +353,9 @@ pub enum TrackSpec {
     Waypoints {
         points: Vec<[f64; 2]>,
         speed: f64,
+        /// Corners are sailed as arcs of this radius (m); 0 turns on the spot.
+        #[serde(default = "default_turn_radius")]
+        turn_radius: f64,
         #[serde(default)]
         start_time: f64,
         #[serde(default)]
@@ -904,6 +912,7 @@ impl Builder<'_> {
                         Some(TrackSpec::Waypoints {
                             points,
                             speed,
+                            turn_radius,
                             start_time,
                             looped,
                         }) => {
@@ -915,9 +924,15 @@ impl Builder<'_> {
                             self.positive(*speed, &field("track.speed"))?;
                             let mut all = vec![*position];
                             all.extend_from_slice(points);
+                            self.check(
+                                turn_radius.is_finite() && *turn_radius >= 0.0,
+                                &field("track.turn_radius"),
+                                "must be finite and >= 0",
+                            )?;
                             Motion::Waypoints {
                                 points: all,
                                 speed: *speed,
+                                turn_radius: *turn_radius,
                                 start_time: *start_time,
                                 looped: *looped,
                             }

@@ -132,10 +132,12 @@ pub enum Motion {
         start: [f64; 2],
         velocity: [f64; 2],
     },
-    /// Follows the polyline at constant speed from `start_time`; holds the last point (or loops).
+    /// Follows the polyline at constant speed from `start_time`, corners rounded to arcs of
+    /// `turn_radius` (m); holds the last point (or loops).
     Waypoints {
         points: Vec<[f64; 2]>,
         speed: f64,
+        turn_radius: f64,
         start_time: f64,
         looped: bool,
     },
@@ -165,46 +167,118 @@ impl Motion {
             Motion::Waypoints {
                 points,
                 speed,
+                turn_radius,
                 start_time,
                 looped,
-            } => along_polyline(points, *speed, (t - start_time).max(0.0), *looped),
+            } => along_polyline(
+                points,
+                *speed,
+                *turn_radius,
+                (t - start_time).max(0.0),
+                *looped,
+            ),
         }
     }
 }
 
-fn along_polyline(points: &[[f64; 2]], speed: f64, t: f64, looped: bool) -> Kinematics {
-    let seg = |i: usize| {
-        let (a, b) = (points[i], points[(i + 1) % points.len()]);
+/// Walks `t` seconds at `speed` along the polyline, corners rounded to arcs of `turn_radius`
+/// (smaller where the legs beside a corner are short; 0 keeps sharp corners). A boat cannot swing
+/// its heading in an instant: a sharp corner would turn its velocity 30 degrees between two frames.
+fn along_polyline(
+    points: &[[f64; 2]],
+    speed: f64,
+    turn_radius: f64,
+    t: f64,
+    looped: bool,
+) -> Kinematics {
+    let n = points.len();
+    let nseg = if looped { n } else { n - 1 };
+    // Leg i runs from points[i] to points[i + 1]; corner i sits at points[i].
+    let leg = |i: usize| {
+        let (a, b) = (points[i % n], points[(i + 1) % n]);
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        (a, dx, dy, dx.hypot(dy))
+        let len = dx.hypot(dy);
+        let dir = if len > 0.0 {
+            [dx / len, dy / len]
+        } else {
+            [1.0, 0.0]
+        };
+        (a, dir, len)
     };
-    let nseg = if looped {
-        points.len()
-    } else {
-        points.len() - 1
-    };
-    let total: f64 = (0..nseg).map(|i| seg(i).3).sum();
-    let mut s = speed * t;
-    if looped && total > 0.0 {
-        s %= total;
-    }
-    for i in 0..nseg {
-        let (a, dx, dy, len) = seg(i);
-        if s <= len && len > 0.0 {
-            let f = s / len;
-            return Kinematics {
-                position: [a[0] + dx * f, a[1] + dy * f],
-                yaw: dy.atan2(dx),
-                velocity: [dx / len * speed, dy / len * speed],
-            };
+    // Corner i between legs i - 1 and i: tangent length (cut from each leg), radius, signed turn.
+    let corner = |i: usize| -> (f64, f64, f64) {
+        let has_corner = looped || (i > 0 && i < n - 1);
+        if !has_corner || turn_radius <= 0.0 || nseg < 2 {
+            return (0.0, 0.0, 0.0);
         }
-        s -= len;
+        let (_, u, lu) = leg((i + nseg - 1) % nseg);
+        let (_, v, lv) = leg(i % nseg);
+        let turn = (u[0] * v[1] - u[1] * v[0]).atan2(u[0] * v[0] + u[1] * v[1]);
+        let half_tan = (0.5 * turn.abs()).tan();
+        if turn.abs() < 1e-9 || !half_tan.is_finite() || lu == 0.0 || lv == 0.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let cut = (turn_radius * half_tan).min(0.5 * lu.min(lv));
+        (cut, cut / half_tan, turn)
+    };
+    let arc_len = |(_, radius, turn): (f64, f64, f64)| radius * turn.abs();
+    let mut s = speed * t;
+    if looped {
+        let total: f64 = (0..nseg)
+            .map(|i| {
+                let c = corner(i);
+                leg(i).2 - 2.0 * c.0 + arc_len(c)
+            })
+            .sum::<f64>();
+        if total > 0.0 {
+            s %= total;
+        }
+    }
+    let at = |p: [f64; 2], heading: f64| Kinematics {
+        position: p,
+        yaw: heading,
+        velocity: [heading.cos() * speed, heading.sin() * speed],
+    };
+    for i in 0..nseg {
+        let (a, dir, len) = leg(i);
+        let (cut_in, _, _) = corner(i);
+        let end = corner(i + 1);
+        let straight = len - cut_in - if looped || i + 1 < nseg { end.0 } else { 0.0 };
+        if s <= straight && len > 0.0 {
+            let d = cut_in + s;
+            return at([a[0] + dir[0] * d, a[1] + dir[1] * d], dir[1].atan2(dir[0]));
+        }
+        s -= straight.max(0.0);
+        let (cut, radius, turn) = if looped || i + 1 < nseg {
+            end
+        } else {
+            (0.0, 0.0, 0.0)
+        };
+        let arc = arc_len((cut, radius, turn));
+        if s <= arc && arc > 0.0 {
+            // Around the centre on the inside of the turn, from the tangent point on this leg.
+            let start = [a[0] + dir[0] * (len - cut), a[1] + dir[1] * (len - cut)];
+            let side = turn.signum();
+            let centre = [
+                start[0] - side * dir[1] * radius,
+                start[1] + side * dir[0] * radius,
+            ];
+            let swept = side * s / radius;
+            let (r0x, r0y) = (start[0] - centre[0], start[1] - centre[1]);
+            let (sn, cs) = swept.sin_cos();
+            let p = [
+                centre[0] + r0x * cs - r0y * sn,
+                centre[1] + r0x * sn + r0y * cs,
+            ];
+            return at(p, dir[1].atan2(dir[0]) + swept);
+        }
+        s -= arc;
     }
     // Past the end: park at the last point, keep the last heading.
     let last = *points.last().expect("validated: at least two points");
     let yaw = if nseg > 0 {
-        let (_, dx, dy, _) = seg(nseg - 1);
-        dy.atan2(dx)
+        let (_, dir, _) = leg(nseg - 1);
+        dir[1].atan2(dir[0])
     } else {
         0.0
     };
@@ -534,6 +608,7 @@ mod tests {
         let m = Motion::Waypoints {
             points: vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]],
             speed: 2.0,
+            turn_radius: 0.0,
             start_time: 1.0,
             looped: false,
         };
@@ -547,6 +622,53 @@ mod tests {
         let end = m.at(100.0);
         assert_eq!(end.position, [10.0, 10.0]);
         assert_eq!(end.velocity, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn waypoint_corners_are_sailed_on_an_arc_of_the_turn_radius() {
+        // A 90 degree corner at (50, 0) on a 20 m radius, at 5 m/s.
+        let m = Motion::Waypoints {
+            points: vec![[0.0, 0.0], [50.0, 0.0], [50.0, 50.0]],
+            speed: 5.0,
+            turn_radius: 20.0,
+            start_time: 0.0,
+            looped: false,
+        };
+        let quarter = std::f64::consts::FRAC_PI_2;
+        // Straight until 20 m before the corner, at the corner's middle 20 (1 - 1/sqrt 2) m inside
+        // it, straight again 20 m after it.
+        let k = m.at(29.9 / 5.0);
+        assert!((k.position[1]).abs() < 1e-9 && k.yaw.abs() < 1e-9, "{k:?}");
+        let mid = m.at((30.0 + 0.5 * 20.0 * quarter) / 5.0);
+        let inset = 20.0 * (1.0 - 0.5f64.sqrt());
+        let from_corner = (mid.position[0] - 50.0).hypot(mid.position[1]);
+        assert!((from_corner - inset * 2f64.sqrt()).abs() < 1e-6, "{mid:?}");
+        assert!((mid.yaw - 0.5 * quarter).abs() < 1e-9);
+        let k = m.at((30.0 + 20.0 * quarter + 1.0) / 5.0);
+        assert!((k.position[0] - 50.0).abs() < 1e-9 && (k.position[1] - 21.0).abs() < 1e-9);
+        assert!((k.yaw - quarter).abs() < 1e-9);
+        // The heading turns at speed / radius at most, and the speed holds (91.4 m: 18.3 s).
+        let mut last = m.at(0.0);
+        for i in 1..360 {
+            let k = m.at(i as f64 * 0.05);
+            assert!(
+                (k.yaw - last.yaw).abs() <= 0.05 * 5.0 / 20.0 + 1e-9,
+                "at {i}: {k:?}"
+            );
+            assert!((k.velocity[0].hypot(k.velocity[1]) - 5.0).abs() < 1e-9);
+            last = k;
+        }
+        // The end is still the last point; legs shorter than the turn cut it to fit.
+        assert_eq!(m.at(100.0).position, [50.0, 50.0]);
+        let tight = Motion::Waypoints {
+            points: vec![[0.0, 0.0], [4.0, 0.0], [4.0, 4.0]],
+            speed: 1.0,
+            turn_radius: 20.0,
+            start_time: 0.0,
+            looped: false,
+        };
+        let k = tight.at(2.0 + 2.0 * quarter + 1.0);
+        assert!((k.position[0] - 4.0).abs() < 1e-9 && (k.position[1] - 3.0).abs() < 1e-9);
     }
 
     #[test]
