@@ -454,11 +454,13 @@ fn print_report(r: &serde_json::Value) {
         );
         let t = &b["tracking"];
         println!(
-            "tracking: boats within 100 m detected {} of {} frames, markers/buoys within 60 m {} of {}, confirmed tracks {} ({} false, {}/min; {} on the shore), moving-boat speed error p50 {} %, heading error p50 {} deg, along/cross 3-sigma ratio {}",
+            "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min; {} on the shore), moving-boat speed error p50 {} %, heading error p50 {} deg, along/cross 3-sigma ratio {}",
             t["boats_within_100m"]["detected"],
             t["boats_within_100m"]["frames"],
+            in_view(&t["boats_within_100m_in_view"]),
             t["markers_within_60m"]["detected"],
             t["markers_within_60m"]["frames"],
+            in_view(&t["markers_within_60m_in_view"]),
             t["confirmed_tracks"],
             t["false_tracks"],
             f(&t["false_tracks_per_min"], 1.0),
@@ -498,4 +500,13 @@ fn follow_held(h: &serde_json::Value) -> String {
         v("to_s"),
         v("rms_m")
     )
+}
+
+/// "in a head's view D of F" for a detection count, or a note that no camera was seen.
+fn in_view(c: &serde_json::Value) -> String {
+    if c.is_object() {
+        format!("in a head's view {} of {}", c["detected"], c["frames"])
+    } else {
+        "no head's view known".to_string()
+    }
 }

@@ -2,10 +2,13 @@
 //! probability by class and range (in metres and in boat lengths, Hammerhead's figure 11), false
 //! tracks per minute, a moving boat's speed and heading error, and the along- versus cross-track
 //! 3-sigma ratio. Matching and the per-instant metrics are the tracker's own (`tracker::eval`).
+//! The detection targets are also scored over the frames in which the object lay in some stereo
+//! head's field of view (Hammerhead's figures are for what the cameras see), beside all frames.
 
-use messages::{truth_class, ContactList, GroundTruth};
+use messages::{truth_class, CameraModel, ContactList, GroundTruth};
 use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet};
+use std::f64::consts::{PI, TAU};
 use tracker::eval::{score, AlongCross};
 
 /// A track within this distance of a true object is that object's track (m).
@@ -60,6 +63,12 @@ pub struct TrackingScore {
     /// Boats within 100 m and markers or buoys within 60 m: the targets.
     boats_100m: Counts,
     markers_60m: Counts,
+    /// The same, over the frames in which the object lay in a head's field of view.
+    boats_100m_in_view: Counts,
+    markers_60m_in_view: Counts,
+    /// Horizontal field of view of each stereo head: (right edge, left edge) azimuth in the body
+    /// frame (rad, counter-clockwise from forward), from the disparity images' camera models.
+    views: BTreeMap<String, (f64, f64)>,
     confirmed_ids: BTreeSet<u32>,
     matched_ids: BTreeSet<u32>,
     /// Where the scenario has shore: confirmed tracks seen on it, which are shore contacts (the
@@ -84,6 +93,26 @@ impl TrackingScore {
             Box::new(move |x: f64, y: f64| world.land_height(x, y, SHORE_HEIGHT_M).is_some())
                 as LandTest
         })
+    }
+
+    /// Learns a head's horizontal field of view from the camera model of its disparity image
+    /// (`width` pixels wide).
+    pub fn on_camera(&mut self, head: &str, camera: &CameraModel, width: u32) {
+        if !(camera.fx > 0.0) || self.views.contains_key(head) {
+            return;
+        }
+        let yaw = camera.mount.yaw;
+        let right = yaw - ((width as f64 - camera.cx) / camera.fx).atan();
+        let left = yaw + (camera.cx / camera.fx).atan();
+        self.views.insert(head.to_string(), (right, left));
+    }
+
+    /// Whether a body-frame azimuth (rad) lies in some head's field of view.
+    fn in_view(&self, azimuth: f64) -> bool {
+        let wrap = |a: f64| (a + PI).rem_euclid(TAU) - PI;
+        self.views
+            .values()
+            .any(|&(right, left)| wrap(azimuth - right) >= 0.0 && wrap(left - azimuth) >= 0.0)
     }
 
     pub fn on_truth(&mut self, truth: &GroundTruth) {
@@ -120,12 +149,24 @@ impl TrackingScore {
                     .or_default()
                     .add(detected);
             }
-            match o.class {
-                truth_class::BOAT if range < 100.0 => self.boats_100m.add(detected),
-                truth_class::BUOY | truth_class::MARKER if range < 60.0 => {
-                    self.markers_60m.add(detected)
+            let azimuth = (o.pose.position[1] - own.position[1])
+                .atan2(o.pose.position[0] - own.position[0])
+                - own.yaw;
+            let in_view = self.in_view(azimuth);
+            let target = match o.class {
+                truth_class::BOAT if range < 100.0 => {
+                    Some((&mut self.boats_100m, &mut self.boats_100m_in_view))
                 }
-                _ => {}
+                truth_class::BUOY | truth_class::MARKER if range < 60.0 => {
+                    Some((&mut self.markers_60m, &mut self.markers_60m_in_view))
+                }
+                _ => None,
+            };
+            if let Some((all, seen)) = target {
+                all.add(detected);
+                if in_view {
+                    seen.add(detected);
+                }
             }
             if let Some(id) = os.track_id {
                 self.matched_ids.insert(id);
@@ -180,6 +221,9 @@ impl TrackingScore {
             "gate_m": GATE_M,
             "boats_within_100m": self.boats_100m.json(),
             "markers_within_60m": self.markers_60m.json(),
+            // Null until a disparity image told the heads' fields of view.
+            "boats_within_100m_in_view": (!self.views.is_empty()).then(|| self.boats_100m_in_view.json()),
+            "markers_within_60m_in_view": (!self.views.is_empty()).then(|| self.markers_60m_in_view.json()),
             "by_range_m": bins(&self.by_range, &RANGE_BINS_M, "m"),
             "by_range_lengths": bins(&self.by_lengths, &LENGTH_BINS, "object lengths"),
             "confirmed_tracks": self.confirmed_ids.len(),
@@ -283,6 +327,35 @@ mod tests {
             .unwrap();
         assert_eq!(boat_lengths["below"], 10.0);
         assert!(r["shore_tracks"].is_null(), "no land test, no shore figure");
+    }
+
+    #[test]
+    fn detection_in_view_counts_only_what_a_head_could_see() {
+        let mut s = TrackingScore::default();
+        s.on_truth(&truth(7));
+        let list = ContactList {
+            hdr: Header::new(0, 7, "tracker"),
+            ..Default::default()
+        };
+        // No camera seen yet: no in-view figure.
+        s.on_contacts(&list);
+        assert!(s.report(1.0)["boats_within_100m_in_view"].is_null());
+        // A head looking north (the own yaw is 0, east; mounted 90 deg to port), 60 deg wide:
+        // the boat 40 m north is in view, the buoy 30 m east is not.
+        let mut camera = CameraModel {
+            fx: 50.0 * 3f64.sqrt(),
+            cx: 50.0,
+            ..Default::default()
+        };
+        camera.mount.yaw = std::f64::consts::FRAC_PI_2;
+        s.on_camera("hh_left", &camera, 100);
+        s.on_contacts(&list);
+        let r = s.report(1.0);
+        assert_eq!(r["boats_within_100m"]["frames"], 2);
+        assert_eq!(r["boats_within_100m_in_view"]["frames"], 1);
+        assert_eq!(r["boats_within_100m_in_view"]["detected"], 0);
+        assert_eq!(r["markers_within_60m"]["frames"], 2);
+        assert_eq!(r["markers_within_60m_in_view"]["frames"], 0);
     }
 
     #[test]

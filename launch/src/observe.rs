@@ -485,7 +485,9 @@ impl Observer {
             if let Some(ms) = o.latency_ms(sample.user_header().hdr.stamp_ns) {
                 o.disparity_latency_ms.push(ms);
             }
-            on_disparity(sample.user_header(), sample.payload());
+            let h = sample.user_header();
+            o.tracking.on_camera(h.head.as_str(), &h.camera, h.width);
+            on_disparity(h, sample.payload());
         }
         while self.local_map.receive()?.is_some() {
             o.local_maps += 1;
