@@ -98,7 +98,7 @@ impl TrackingScore {
     /// Learns a head's horizontal field of view from the camera model of its disparity image
     /// (`width` pixels wide).
     pub fn on_camera(&mut self, head: &str, camera: &CameraModel, width: u32) {
-        if !(camera.fx > 0.0) || self.views.contains_key(head) {
+        if !(camera.fx.is_finite() && camera.fx > 0.0) || self.views.contains_key(head) {
             return;
         }
         let yaw = camera.mount.yaw;
