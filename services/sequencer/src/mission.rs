@@ -43,7 +43,6 @@
 //! type = "stop"                   # throttle 0 until the boat is (nearly) still
 //! ```
 
-use crate::arcs::angle_diff;
 use crate::control::{FollowOffset, OwnState};
 use messages::{contact_class, Contact};
 use serde::Deserialize;
@@ -402,9 +401,8 @@ struct Lock {
     detected_ns: u64,
     /// Where the target was when last seen, to take it up again under a new id.
     position: [f64; 2],
-    /// Its velocity, course smoothed over [`LOCK_VELOCITY_TAU_S`] and speed over
-    /// [`LOCK_SPEED_TAU_S`]: what the boat matches and what a track must move like to stay the
-    /// target.
+    /// Its velocity smoothed over [`LOCK_VELOCITY_TAU_S`]: what the boat matches and what a
+    /// track must move like to stay the target.
     velocity: [f64; 2],
 }
 
@@ -412,12 +410,6 @@ struct Lock {
 /// over seconds; a track's velocity drops by as much within a second when its blob grows a trail
 /// of stale map cells behind the boat, and that track then falls behind the boat it tracked.
 const LOCK_VELOCITY_TAU_S: f64 = 1.0;
-/// Time constant (s) of the lock's smoothed target speed once the lock has settled. A boat turns
-/// within seconds but keeps its speed for longer; a track on the trail of stale cells a boat
-/// leaves, or a young one on the boat itself, reports half its speed for seconds in about its
-/// course, and with the 1 s constant such tracks dragged the lock's speed down until the boat
-/// fell back and no track of the real target matched it any more.
-const LOCK_SPEED_TAU_S: f64 = 4.0;
 /// After this long (s) locked, the smoothed velocity is trusted: the followed id stays the
 /// target only while its velocity is within [`CONTINUE_VELOCITY_MPS`] of it. Before, a young
 /// track's velocity may still be junk.
@@ -487,24 +479,14 @@ impl Lock {
     /// The lock after the target was seen as `c` in the contact list stamped `stamp_ns`.
     fn seen(self, c: &Contact, stamp_ns: u64) -> Lock {
         let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
-        let gain = |tau: f64| 1.0 - (-dt / tau).exp();
-        let k_course = gain(LOCK_VELOCITY_TAU_S);
-        // Until the lock has settled its speed may be a young track's junk: follow the tracks.
-        let k_speed = if self.settled(stamp_ns) {
-            gain(LOCK_SPEED_TAU_S)
-        } else {
-            k_course
-        };
-        let speed = self.velocity[0].hypot(self.velocity[1]);
-        let speed = speed + k_speed * (c.velocity[0].hypot(c.velocity[1]) - speed);
-        // A contact too slow to have a course leaves the course as it was.
-        let course = course_of(c.velocity).map_or(self.course, |cc| {
-            self.course + k_course * angle_diff(cc, self.course)
-        });
-        let velocity = [speed * course.cos(), speed * course.sin()];
+        let k = 1.0 - (-dt / LOCK_VELOCITY_TAU_S).exp();
+        let velocity = [
+            self.velocity[0] + k * (c.velocity[0] - self.velocity[0]),
+            self.velocity[1] + k * (c.velocity[1] - self.velocity[1]),
+        ];
         Lock {
             id: c.id,
-            course,
+            course: course_of(velocity).unwrap_or(self.course),
             last_seen_ns: stamp_ns.max(self.last_seen_ns),
             // A track taken up under a new id counts as detected from now.
             detected_ns: if c.coasting == 0 || c.id != self.id {
@@ -516,11 +498,6 @@ impl Lock {
             velocity,
             ..self
         }
-    }
-
-    /// Whether the lock has held long enough for its smoothed velocity to be trusted.
-    fn settled(&self, stamp_ns: u64) -> bool {
-        stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S
     }
 
     /// Velocity difference (m/s) between a contact and the target's smoothed velocity.
@@ -543,7 +520,8 @@ impl Lock {
                 && stamp_ns.saturating_sub(self.detected_ns) as f64 / NS > LOCK_MAX_COAST_S
         };
         if let Some(c) = contacts.iter().find(|c| c.id == self.id && !coasted_out(c)) {
-            let max_gap = if self.settled(stamp_ns) {
+            let settled = stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S;
+            let max_gap = if settled {
                 CONTINUE_VELOCITY_MPS
             } else if c.class == contact_class::FALSE_ALARM {
                 REACQUIRE_VELOCITY_MPS
@@ -1341,33 +1319,20 @@ mod tests {
         let (_, v, _) = at(2 * S, &[track(25.0, 4.0)]);
         let expected = 7.0 - 3.0 * (1.0 - (-1.0f64).exp());
         assert!((v[0] - expected).abs() < 1e-9, "{v:?}");
-        let x = |t: u64| 20.0 + 7.0 * (t - 1) as f64;
-        for t in 3..8u64 {
-            at(t * S, &[track(x(t), 7.0)]);
+        for k in 3..=5u64 {
+            at(k * S, &[track(25.0 + 7.0 * (k - 2) as f64, 7.0)]);
         }
-        let (_, v, _) = at(8 * S, &[track(x(8), 7.0)]);
+        let (_, v, _) = at(5 * S, &[track(46.0, 7.0)]);
         assert!((v[0] - 7.0).abs() < 0.3, "settled near 7 m/s: {v:?}");
         // Settled: the track's blob grows a trail, its velocity drops to 3.5 m/s and it falls
         // behind. It is no longer the target, which is followed where it is predicted.
-        let (p, v, name) = at(9 * S, &[track(x(9) - 6.0, 3.5)]);
+        let (p, v, name) = at(6 * S, &[track(50.0, 3.5)]);
         assert_eq!(name, "follow #3");
         assert!((v[0] - 7.0).abs() < 0.3, "{v:?}");
-        assert!(
-            p[0] > x(9) - 3.5,
-            "predicted ahead of the lagging track: {p:?}"
-        );
+        assert!(p[0] > 52.5, "predicted ahead of the lagging track: {p:?}");
         // Moving like the target again, the same track is the target again.
-        let (p, _, _) = at(10 * S, &[track(x(10), 6.5)]);
-        assert!((p[0] - x(10)).abs() < 1e-9, "{p:?}");
-        // A second at 5 m/s (within the 2.5 m/s that keeps it the target) takes a fifth of the
-        // difference off the settled speed (4 s time constant), not two thirds.
-        let (_, before, _) = at(11 * S, &[track(x(11), 7.0)]);
-        let (_, v, _) = at(12 * S, &[track(x(12), 5.0)]);
-        let taken = (before[0] - v[0]) / (before[0] - 5.0);
-        assert!(
-            (taken - (1.0 - (-0.25f64).exp())).abs() < 1e-9,
-            "{before:?} -> {v:?}"
-        );
+        let (p, _, _) = at(7 * S, &[track(60.0, 6.5)]);
+        assert!((p[0] - 60.0).abs() < 1e-9, "{p:?}");
     }
 
     #[test]
