@@ -306,26 +306,34 @@ mod tests {
         assert_eq!(out[0].cells, 11);
     }
 
-    #[test]
-    fn guide_windows_lower_the_threshold_once_and_only_inside() {
-        let grid = GridGeometry {
+    /// 20 m x 10 m around the origin, 0.5 m cells (row 10 is y = 0.25).
+    fn guide_test_grid() -> GridGeometry {
+        GridGeometry {
             width: 40,
             height: 20,
             resolution_m: 0.5,
             center: [0.0, 0.0],
-        };
+        }
+    }
+
+    /// The tracker's full threshold, 8-connected.
+    const GUIDE_TEST_PARAMS: DetectParams = DetectParams {
+        threshold: 128,
+        min_cells: 1,
+        max: 16,
+        link_cells: 1,
+    };
+
+    #[test]
+    fn guide_windows_lower_the_threshold_once_and_only_inside() {
+        let grid = guide_test_grid();
         // Two equal strips of weak evidence (hazard 85 of 255, below the 128 threshold):
         // a boat's path near (-5, 0) and sun glint near (5, 0).
         let mut cells = vec![MapCell::default(); 800];
         for x in [8usize, 9, 10, 11, 12, 28, 29, 30, 31, 32] {
             cells[10 * 40 + x].hazard = 85;
         }
-        let params = DetectParams {
-            threshold: 128,
-            min_cells: 1,
-            max: 16,
-            link_cells: 1,
-        };
+        let params = GUIDE_TEST_PARAMS;
         let mut d = Detector::new();
         let mut out = Vec::new();
         d.detect(&grid, &cells, &params, &mut out);
@@ -357,35 +365,20 @@ mod tests {
 
     #[test]
     fn inside_a_guide_window_a_lifted_cell_joins_from_a_lower_hazard_and_a_flat_one_does_not() {
-        let grid = GridGeometry {
-            width: 40,
-            height: 20,
-            resolution_m: 0.5,
-            center: [0.0, 0.0],
-        };
+        let grid = guide_test_grid();
         // A stern seen once in the average (hazard 70, 1.6 m above the water) beside glint of the
         // same hazard lying on the water, both in one window.
         let mut cells = vec![MapCell::default(); 800];
-        for x in [8usize, 9, 10, 11] {
-            cells[10 * 40 + x] = MapCell {
-                hazard: 70,
-                max_height_cm: 160,
-                ..MapCell::default()
-            };
+        for (xs, max_height_cm) in [(8..12, 160), (20..24, 10)] {
+            for x in xs {
+                cells[10 * 40 + x] = MapCell {
+                    hazard: 70,
+                    max_height_cm,
+                    ..MapCell::default()
+                };
+            }
         }
-        for x in [20usize, 21, 22, 23] {
-            cells[10 * 40 + x] = MapCell {
-                hazard: 70,
-                max_height_cm: 10,
-                ..MapCell::default()
-            };
-        }
-        let params = DetectParams {
-            threshold: 128,
-            min_cells: 1,
-            max: 16,
-            link_cells: 1,
-        };
+        let params = GUIDE_TEST_PARAMS;
         let thresholds = GuideThresholds {
             hazard: 96,
             lifted_hazard: 64,

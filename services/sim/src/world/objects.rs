@@ -241,19 +241,15 @@ fn along_polyline(
     };
     for i in 0..nseg {
         let (a, dir, len) = leg(i);
+        // The corner at the leg's end (none after the last leg of an open track).
         let (cut_in, _, _) = corner(i);
-        let end = corner(i + 1);
-        let straight = len - cut_in - if looped || i + 1 < nseg { end.0 } else { 0.0 };
+        let (cut, radius, turn) = corner(i + 1);
+        let straight = len - cut_in - cut;
         if s <= straight && len > 0.0 {
             let d = cut_in + s;
             return at([a[0] + dir[0] * d, a[1] + dir[1] * d], dir[1].atan2(dir[0]));
         }
         s -= straight.max(0.0);
-        let (cut, radius, turn) = if looped || i + 1 < nseg {
-            end
-        } else {
-            (0.0, 0.0, 0.0)
-        };
         let arc = arc_len((cut, radius, turn));
         if s <= arc && arc > 0.0 {
             // Around the centre on the inside of the turn, from the tangent point on this leg.
