@@ -401,15 +401,22 @@ struct Lock {
     detected_ns: u64,
     /// Where the target was when last seen, to take it up again under a new id.
     position: [f64; 2],
-    /// Its velocity smoothed over [`LOCK_VELOCITY_TAU_S`]: what the boat matches and what a
-    /// track must move like to stay the target.
+    /// Its filtered velocity: what the boat matches and what a track must move like to stay
+    /// the target.
     velocity: [f64; 2],
+    /// Variance (m^2/s^2, per axis) of `velocity`.
+    velocity_var: f64,
 }
 
-/// Time constant (s) of the lock's smoothed target velocity. A boat changes speed by a few m/s
-/// over seconds; a track's velocity drops by as much within a second when its blob grows a trail
-/// of stale map cells behind the boat, and that track then falls behind the boat it tracked.
-const LOCK_VELOCITY_TAU_S: f64 = 1.0;
+/// The lock's target velocity is a scalar Kalman filter per axis over the followed tracks'
+/// velocities. The target's velocity wanders by this much (variance per second, m^2/s^3): a
+/// boat changes speed by a few m/s over seconds.
+const LOCK_VELOCITY_DRIFT: f64 = 0.25;
+/// Least variance (m^2/s^2) of a track's velocity as a measurement of the target's, whatever the
+/// track's own covariance says: a track's velocity drops by a few m/s within a second when its
+/// blob grows a trail of stale map cells behind the boat, an error its filter does not see. With
+/// [`LOCK_VELOCITY_DRIFT`] it smooths a settled track over about 1 s at 5 Hz.
+const LOCK_VELOCITY_MEASUREMENT_FLOOR: f64 = 1.0;
 /// After this long (s) locked, the smoothed velocity is trusted: the followed id stays the
 /// target only while its velocity is within [`CONTINUE_VELOCITY_MPS`] of it. Before, a young
 /// track's velocity may still be junk.
@@ -477,9 +484,13 @@ impl Lock {
     }
 
     /// The lock after the target was seen as `c` in the contact list stamped `stamp_ns`.
+    /// A track's velocity weighs by its certainty: a young track starts at rest with a wide
+    /// covariance and reaches the target's speed over a second or two; taken at face value it
+    /// dragged the lock's velocity down until the target's settled track no longer matched it.
     fn seen(self, c: &Contact, stamp_ns: u64) -> Lock {
         let dt = stamp_ns.saturating_sub(self.last_seen_ns) as f64 / NS;
-        let k = 1.0 - (-dt / LOCK_VELOCITY_TAU_S).exp();
+        let predicted_var = self.velocity_var + LOCK_VELOCITY_DRIFT * dt;
+        let k = predicted_var / (predicted_var + velocity_measurement_var(c));
         let velocity = [
             self.velocity[0] + k * (c.velocity[0] - self.velocity[0]),
             self.velocity[1] + k * (c.velocity[1] - self.velocity[1]),
@@ -496,6 +507,7 @@ impl Lock {
             },
             position: c.position,
             velocity,
+            velocity_var: (1.0 - k) * predicted_var,
             ..self
         }
     }
@@ -834,6 +846,7 @@ impl Runner {
                         detected_ns: stamp,
                         position: c.position,
                         velocity: c.velocity,
+                        velocity_var: velocity_measurement_var(c),
                     },
                     // Not seen yet: wait stopped; the step timeout bounds the wait.
                     (None, None) => return Some(Directive::Hold),
@@ -886,6 +899,18 @@ impl Runner {
             StepKind::Stop {} => (own.speed_mps > STOPPED_MPS).then_some(Directive::Hold),
             StepKind::Wait { seconds } => (elapsed < *seconds).then_some(Directive::Hold),
         }
+    }
+}
+
+/// Variance (m^2/s^2, per axis) of a contact's velocity as a measurement of its object's: the
+/// mean of its filter's two velocity variances, at least [`LOCK_VELOCITY_MEASUREMENT_FLOOR`]
+/// (and at most 100^2: a covariance that is not finite says nothing).
+fn velocity_measurement_var(c: &Contact) -> f64 {
+    let filter_var = 0.5 * (c.covariance[10] as f64 + c.covariance[15] as f64);
+    if filter_var.is_finite() {
+        filter_var.clamp(LOCK_VELOCITY_MEASUREMENT_FLOOR, 1e4)
+    } else {
+        1e4
     }
 }
 
@@ -1282,8 +1307,8 @@ mod tests {
         );
         assert_eq!(name, "follow #9");
         assert!(
-            matches!(d, Directive::Follow { position, .. } if (position[0] - 42.13).abs() < 0.01),
-            "followed where #9 is predicted at the smoothed 7.13 m/s: {d:?}"
+            matches!(d, Directive::Follow { position, .. } if (position[0] - 42.09).abs() < 0.01),
+            "followed where #9 is predicted at the filtered 7.09 m/s: {d:?}"
         );
     }
 
@@ -1314,10 +1339,12 @@ mod tests {
                 d => panic!("{d:?}"),
             }
         };
-        // Locked at 1 s; a young track's velocity is taken, smoothed (1 s time constant).
+        // Locked at 1 s; a young track's velocity is taken, filtered: both measurements weigh
+        // the floor variance, the lock's grew by the drift over the second between them.
         at(S, &[track(20.0, 7.0)]);
         let (_, v, _) = at(2 * S, &[track(25.0, 4.0)]);
-        let expected = 7.0 - 3.0 * (1.0 - (-1.0f64).exp());
+        let var = LOCK_VELOCITY_MEASUREMENT_FLOOR + LOCK_VELOCITY_DRIFT;
+        let expected = 7.0 - 3.0 * var / (var + LOCK_VELOCITY_MEASUREMENT_FLOOR);
         assert!((v[0] - expected).abs() < 1e-9, "{v:?}");
         for k in 3..=5u64 {
             at(k * S, &[track(25.0 + 7.0 * (k - 2) as f64, 7.0)]);
@@ -1333,6 +1360,62 @@ mod tests {
         // Moving like the target again, the same track is the target again.
         let (p, _, _) = at(7 * S, &[track(60.0, 6.5)]);
         assert!((p[0] - 60.0).abs() < 1e-9, "{p:?}");
+    }
+
+    #[test]
+    fn a_young_tracks_velocity_weighs_by_its_covariance_in_the_lock() {
+        // The lock follows #3 at 7 m/s for 4 s; then #3 is gone and #8, born where the target
+        // went, still reads 4.5 m/s for a second. How far it drags the lock's velocity depends on
+        // how sure its filter is.
+        let lock_velocity_after_young_track = |young_velocity_var: f32| {
+            let m =
+                Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
+                    .unwrap();
+            let mut r = Runner::new(10.0);
+            r.load(m);
+            let track = |id, x: f64, vx: f64, var: f32| {
+                let mut covariance = [0.0; 16];
+                covariance[10] = var;
+                covariance[15] = var;
+                Contact {
+                    id,
+                    class: contact_class::BOAT,
+                    confirmed: 1,
+                    position: [x, 0.0],
+                    velocity: [vx, 0.0],
+                    covariance,
+                    ..Default::default()
+                }
+            };
+            let mut velocity = [0.0; 2];
+            for k in 0..=25u64 {
+                let (id, vx, var) = if k <= 20 {
+                    (3, 7.0, 0.5)
+                } else {
+                    (8, 4.5, young_velocity_var)
+                };
+                let t = k * S / 5;
+                let contacts = [track(id, 40.0 + 1.4 * k as f64, vx, var)];
+                let w = World {
+                    own: OwnState::default(),
+                    contacts: &contacts,
+                    contacts_stamp_ns: t,
+                };
+                match r.update(t, &w) {
+                    Directive::Follow { velocity: v, .. } => velocity = v,
+                    d => panic!("{d:?}"),
+                }
+                assert_eq!(r.step_name(), format!("follow #{id}"), "{k}");
+            }
+            velocity[0]
+        };
+        let unsure = lock_velocity_after_young_track(9.0);
+        let sure = lock_velocity_after_young_track(0.5);
+        assert!(
+            unsure > 6.5,
+            "a track unsure of its velocity barely moves the lock: {unsure}"
+        );
+        assert!(sure < 5.5, "one sure of it is followed: {sure}");
     }
 
     #[test]
