@@ -591,7 +591,11 @@ fn corridor_half_width(cfg: &ArcConfig, resolution: f64, s: f64) -> f64 {
         + resolution * std::f64::consts::SQRT_2
 }
 
-/// Picks the traversable arc closest to the goal direction, with hysteresis.
+/// Picks the traversable arc closest to the goal direction. Hysteresis applies among detours only:
+/// while the arc towards the goal is free it is taken, and the boat steers the goal's exact course.
+/// Held by hysteresis, a neighbour of the goal arc meant steering a fixed angle off the current
+/// heading, a turn that went on until the goal fell a whole arc spacing away: a weave of +-12
+/// degrees every 11 s behind a followed boat.
 #[derive(Debug, Default, Clone)]
 pub struct ArcChooser {
     previous: Option<usize>,
@@ -613,9 +617,11 @@ impl ArcChooser {
                     .total_cmp(&set.arcs[b].curvature.abs()),
             )
         });
+        let goal_arc_free = free(set.nearest(goal_bearing));
         let chosen = match (best, self.previous) {
             (Some(b), Some(p))
-                if p < set.arcs.len()
+                if !goal_arc_free
+                    && p < set.arcs.len()
                     && free(p)
                     && score(&set.arcs[p]) <= score(&set.arcs[b]) + set.cfg.hysteresis_rad =>
             {
@@ -845,15 +851,36 @@ mod tests {
     }
 
     #[test]
-    fn hysteresis_keeps_the_previous_arc_for_small_goal_changes() {
+    fn hysteresis_keeps_a_detour_for_small_goal_changes_but_never_holds_off_a_free_goal_arc() {
         let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
-        let mut chooser = ArcChooser::default();
-        let a = chooser.choose(&set, 0, 0.2).unwrap();
         let spacing = (set.arcs()[1].direction - set.arcs()[0].direction).abs();
-        // Half an arc spacing further: same arc.
-        assert_eq!(chooser.choose(&set, 0, 0.2 + spacing * 0.6), Some(a));
+        let mut chooser = ArcChooser::default();
+        // Nothing blocked: the arc towards the goal, whichever it is now.
+        let a = set.nearest(0.2);
+        let bearing = set.arcs()[a].direction + spacing * 0.3;
+        assert_eq!(chooser.choose(&set, 0, bearing), Some(a));
+        // Over half an arc spacing further (less than the hysteresis): the next arc.
+        assert!(spacing * 0.6 < ArcConfig::default().hysteresis_rad);
+        assert_eq!(
+            chooser.choose(&set, 0, bearing + spacing * 0.6),
+            Some(a + 1)
+        );
+        // The goal arc and two neighbours either side blocked: a detour to port, the nearer
+        // side. With the goal nudged to starboard, the starboard detour is now a little nearer,
+        // but the port one is kept.
+        let goal = set.nearest(0.0);
+        let blocked = (goal - 2..=goal + 2).fold(0u128, |m, i| m | 1 << i);
+        let port_of_goal = set.arcs()[goal].direction + spacing * 0.3;
+        let detour = chooser.choose(&set, blocked, port_of_goal).unwrap();
+        assert_eq!(detour, goal + 3);
+        let nudged = set.arcs()[goal].direction - spacing * 0.3;
+        assert_eq!(chooser.clone().choose(&set, blocked, nudged), Some(detour));
+        assert_eq!(
+            ArcChooser::default().choose(&set, blocked, nudged),
+            Some(goal - 3)
+        );
         // Far away: switches.
-        assert_ne!(chooser.choose(&set, 0, -0.5), Some(a));
+        assert_ne!(chooser.choose(&set, blocked, -0.5), Some(detour));
     }
 
     #[test]
