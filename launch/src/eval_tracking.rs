@@ -5,7 +5,7 @@
 //! The detection targets are also scored over the frames in which the object lay in some stereo
 //! head's field of view (Hammerhead's figures are for what the cameras see), beside all frames.
 
-use messages::{truth_class, CameraModel, ContactList, GroundTruth};
+use messages::{contact_class, truth_class, CameraModel, ContactList, GroundTruth};
 use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet};
 use std::f64::consts::{PI, TAU};
@@ -70,6 +70,9 @@ pub struct TrackingScore {
     /// frame (rad, counter-clockwise from forward), from the disparity images' camera models.
     views: BTreeMap<String, (f64, f64)>,
     confirmed_ids: BTreeSet<u32>,
+    /// Confirmed tracks reported at least once as an object (boat, marker, extended) rather than
+    /// a false alarm: the ones the sequencer avoids.
+    object_ids: BTreeSet<u32>,
     matched_ids: BTreeSet<u32>,
     /// Where the scenario has shore: confirmed tracks seen on it, which are shore contacts (the
     /// classifier's "extended"), not false tracks.
@@ -179,6 +182,12 @@ impl TrackingScore {
         }
         for c in list.as_slice().iter().filter(|c| c.confirmed == 1) {
             self.confirmed_ids.insert(c.id);
+            if matches!(
+                c.class,
+                contact_class::BOAT | contact_class::CHANNEL_MARKER | contact_class::EXTENDED
+            ) {
+                self.object_ids.insert(c.id);
+            }
             if let Some(land) = &self.land {
                 let [x, y] = c.position;
                 let m = SHORE_MARGIN_M;
@@ -195,10 +204,20 @@ impl TrackingScore {
     /// Confirmed tracks that never came within the gate of a scored true object nor lay on the
     /// shore.
     pub fn false_tracks(&self) -> usize {
+        self.false_track_ids().count()
+    }
+
+    /// False tracks the tracker reported as an object at least once.
+    pub fn false_object_tracks(&self) -> usize {
+        self.false_track_ids()
+            .filter(|id| self.object_ids.contains(id))
+            .count()
+    }
+
+    fn false_track_ids(&self) -> impl Iterator<Item = &u32> {
         self.confirmed_ids
             .iter()
             .filter(|id| !self.matched_ids.contains(id) && !self.shore_ids.contains(id))
-            .count()
     }
 
     /// Confirmed tracks on the shore that never met a scored true object.
@@ -231,6 +250,9 @@ impl TrackingScore {
             "shore_tracks": self.land.as_ref().map(|_| self.shore_tracks()),
             "false_tracks_per_min": (scenario_minutes > 0.0)
                 .then(|| self.false_tracks() as f64 / scenario_minutes),
+            "false_object_tracks": self.false_object_tracks(),
+            "false_object_tracks_per_min": (scenario_minutes > 0.0)
+                .then(|| self.false_object_tracks() as f64 / scenario_minutes),
             "moving_speed_error_pct": {"p50": median(&self.speed_errors_pct),
                                        "samples": self.speed_errors_pct.len()},
             "moving_heading_error_deg": {"p50": median(&self.heading_errors_deg)},
@@ -291,12 +313,20 @@ mod tests {
         s.on_truth(&truth(7));
         let mut list = ContactList {
             hdr: Header::new(0, 7, "tracker"),
-            count: 2,
+            count: 3,
             ..Default::default()
         };
-        // The boat tracked 1 m off at 4.8 m/s; a false track far from everything; no buoy track.
+        // The boat tracked 1 m off at 4.8 m/s; two false tracks far from everything, one called a
+        // boat and one a false alarm; no buoy track.
         list.contacts[0] = contact(10, [1.0, 40.0], [4.8, 0.0]);
-        list.contacts[1] = contact(11, [-60.0, -60.0], [0.0, 0.0]);
+        list.contacts[1] = Contact {
+            class: contact_class::BOAT,
+            ..contact(11, [-60.0, -60.0], [0.0, 0.0])
+        };
+        list.contacts[2] = Contact {
+            class: contact_class::FALSE_ALARM,
+            ..contact(12, [60.0, -60.0], [0.0, 0.0])
+        };
         s.on_contacts(&list);
         // A list without the truth of its frame is not scored.
         list.hdr.stamp_ns = 8;
@@ -307,8 +337,10 @@ mod tests {
         assert_eq!(r["boats_within_100m"]["detected"], 1);
         assert_eq!(r["markers_within_60m"]["frames"], 1);
         assert_eq!(r["markers_within_60m"]["detected"], 0);
-        assert_eq!(r["false_tracks"], 1);
-        assert_eq!(r["false_tracks_per_min"], 2.0);
+        assert_eq!(r["false_tracks"], 2);
+        assert_eq!(r["false_tracks_per_min"], 4.0);
+        assert_eq!(r["false_object_tracks"], 1);
+        assert_eq!(r["false_object_tracks_per_min"], 2.0);
         let speed = r["moving_speed_error_pct"]["p50"].as_f64().unwrap();
         assert!((speed - 4.0).abs() < 1e-9, "{speed}");
         // The boat is 40 m out: the 25-50 m bin, and 5 lengths -> the 5-10 lengths bin.
