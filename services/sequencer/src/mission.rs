@@ -417,12 +417,12 @@ const LOCK_VELOCITY_DRIFT: f64 = 0.25;
 /// blob grows a trail of stale map cells behind the boat, an error its filter does not see. With
 /// [`LOCK_VELOCITY_DRIFT`] it smooths a settled track over about 1 s at 5 Hz.
 const LOCK_VELOCITY_MEASUREMENT_FLOOR: f64 = 1.0;
-/// After this long (s) locked, the smoothed velocity is trusted: the followed id stays the
+/// After this long (s) locked, the filtered velocity is trusted: the followed id stays the
 /// target only while its velocity is within [`CONTINUE_VELOCITY_MPS`] of it. Before, a young
 /// track's velocity may still be junk.
 const LOCK_SETTLE_S: f64 = 3.0;
 /// See [`LOCK_SETTLE_S`] (m/s).
-const CONTINUE_VELOCITY_MPS: f64 = 2.5;
+const CONTINUE_VELOCITY_MPS: f64 = 2.0;
 /// A followed track coasting (no detection) for longer than this (s) is a guess: the target is
 /// followed where the lock predicts it and may be taken up by another track found there. A
 /// coasting track keeps the velocity it had, and one a few m/s off drifted 25 m from the boat
@@ -430,7 +430,7 @@ const CONTINUE_VELOCITY_MPS: f64 = 2.5;
 const LOCK_MAX_COAST_S: f64 = 1.0;
 
 /// A target followed where it is predicted is followed this much (m) farther astern per second
-/// unseen. The smoothed velocity is a few tenths of a m/s off: 0.7 m/s too fast put the boat 11 m
+/// unseen. The filtered velocity is a few tenths of a m/s off: 0.7 m/s too fast put the boat 11 m
 /// (centre to centre) behind a target it meant to keep 20 m behind, after 8 s unseen.
 const LOST_BACKOFF_MPS: f64 = 1.0;
 
@@ -449,9 +449,18 @@ fn ahead(p: [f64; 2], course: f64, d: f64) -> [f64; 2] {
 const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows) ...
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
-/// ... and moves like it did: within this much (m/s) of its smoothed velocity. A false track on
-/// the water nearby stands still; a duplicate's junk velocity is far off.
+/// ... and moves like it did: within this much (m/s) of its filtered velocity while the lock is
+/// young (locked for less than [`LOCK_SETTLE_S`]), whose velocity may still be junk. A false track
+/// on the water nearby stands still; a duplicate's junk velocity is far off.
 const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
+/// Once the lock has settled, and for tracks the classifier calls false alarms, the speed must
+/// also match within this much (m/s); the course may differ more, as the target may have turned
+/// while it was predicted on its old course. Behind a boat followed from astern the tracker finds
+/// young tracks on the trail of map cells it leaves, which report 1-4 m/s for a 7 m/s boat and
+/// fall behind it; taken up with 3 m/s of slack they dragged the lock's velocity down until it
+/// took up a ghost beside the boat. Sun glint near a lost target drifts at a few m/s in about its
+/// direction.
+const REACQUIRE_SPEED_MPS: f64 = 1.5;
 /// Among those, the best has the least distance plus this many seconds times the velocity
 /// difference ...
 const REACQUIRE_VELOCITY_WEIGHT_S: f64 = 3.0;
@@ -460,10 +469,6 @@ const REACQUIRE_VELOCITY_WEIGHT_S: f64 = 3.0;
 /// classifier often calls a false alarm; its motion is the better witness, so the class only
 /// breaks ties.
 const REACQUIRE_FALSE_ALARM_PENALTY_M: f64 = 10.0;
-/// A new track the classifier calls a false alarm must also move closer to the target's smoothed
-/// velocity than this (m/s): sun glint near a lost target otherwise drifts at a few m/s in about
-/// its direction, and following it slows the boat until the target is gone.
-const REACQUIRE_FALSE_ALARM_VELOCITY_MPS: f64 = 1.5;
 /// Tracks this close (m) to the own boat are never the target: they are its own wake and spray,
 /// which move with it and so, while it follows at the target's speed, like the target.
 const REACQUIRE_MIN_OWN_RANGE_M: f64 = 10.0;
@@ -512,15 +517,21 @@ impl Lock {
         }
     }
 
-    /// Velocity difference (m/s) between a contact and the target's smoothed velocity.
+    /// Velocity difference (m/s) between a contact and the target's filtered velocity.
     fn velocity_gap(&self, c: &Contact) -> f64 {
         (c.velocity[0] - self.velocity[0]).hypot(c.velocity[1] - self.velocity[1])
     }
 
+    /// Speed difference (m/s) between a contact and the target's filtered velocity.
+    fn speed_gap(&self, c: &Contact) -> f64 {
+        (c.velocity[0].hypot(c.velocity[1]) - self.velocity[0].hypot(self.velocity[1])).abs()
+    }
+
     /// The contact that continues this lock: the same id while it still moves like the target
     /// (whatever the classifier now calls it) and has not only coasted for over
-    /// [`LOCK_MAX_COAST_S`], or else a new track where the target went, moving like it and not
-    /// hanging on the own boat at `own`.
+    /// [`LOCK_MAX_COAST_S`], or else a new track where the target went, moving like it, detected
+    /// now (a coasting track is only a prediction: one on the trail the target left, coasting at
+    /// 5 m/s, once dragged the lock off the target) and not hanging on the own boat at `own`.
     fn find<'a>(
         &self,
         contacts: &'a [Contact],
@@ -531,8 +542,8 @@ impl Lock {
             c.coasting == 1
                 && stamp_ns.saturating_sub(self.detected_ns) as f64 / NS > LOCK_MAX_COAST_S
         };
+        let settled = stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S;
         if let Some(c) = contacts.iter().find(|c| c.id == self.id && !coasted_out(c)) {
-            let settled = stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S;
             let max_gap = if settled {
                 CONTINUE_VELOCITY_MPS
             } else if c.class == contact_class::FALSE_ALARM {
@@ -560,14 +571,12 @@ impl Lock {
         };
         contacts
             .iter()
-            .filter(|c| c.confirmed == 1 && c.id != self.id && off_own(c))
+            .filter(|c| c.confirmed == 1 && c.coasting == 0 && c.id != self.id && off_own(c))
             .filter(|c| {
-                let max_gap = if c.class == contact_class::FALSE_ALARM {
-                    REACQUIRE_FALSE_ALARM_VELOCITY_MPS
-                } else {
-                    REACQUIRE_VELOCITY_MPS
-                };
-                d(c) <= gate && self.velocity_gap(c) <= max_gap
+                let strict = settled || c.class == contact_class::FALSE_ALARM;
+                d(c) <= gate
+                    && self.velocity_gap(c) <= REACQUIRE_VELOCITY_MPS
+                    && (!strict || self.speed_gap(c) <= REACQUIRE_SPEED_MPS)
             })
             .min_by(|a, b| score(a).total_cmp(&score(b)).then(a.id.cmp(&b.id)))
     }
@@ -1365,7 +1374,7 @@ mod tests {
     #[test]
     fn a_young_tracks_velocity_weighs_by_its_covariance_in_the_lock() {
         // The lock follows #3 at 7 m/s for 4 s; then #3 is gone and #8, born where the target
-        // went, still reads 4.5 m/s for a second. How far it drags the lock's velocity depends on
+        // went, still reads 6 m/s for a second. How far it drags the lock's velocity depends on
         // how sure its filter is.
         let lock_velocity_after_young_track = |young_velocity_var: f32| {
             let m =
@@ -1392,7 +1401,7 @@ mod tests {
                 let (id, vx, var) = if k <= 20 {
                     (3, 7.0, 0.5)
                 } else {
-                    (8, 4.5, young_velocity_var)
+                    (8, 6.0, young_velocity_var)
                 };
                 let t = k * S / 5;
                 let contacts = [track(id, 40.0 + 1.4 * k as f64, vx, var)];
@@ -1409,13 +1418,59 @@ mod tests {
             }
             velocity[0]
         };
-        let unsure = lock_velocity_after_young_track(9.0);
+        let unsure = lock_velocity_after_young_track(25.0);
         let sure = lock_velocity_after_young_track(0.5);
         assert!(
-            unsure > 6.5,
+            unsure > 6.8,
             "a track unsure of its velocity barely moves the lock: {unsure}"
         );
-        assert!(sure < 5.5, "one sure of it is followed: {sure}");
+        assert!(sure < 6.5, "one sure of it is followed: {sure}");
+    }
+
+    #[test]
+    fn a_settled_lock_takes_up_only_a_track_at_the_targets_speed_though_on_a_new_course() {
+        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
+            .unwrap();
+        let mut r = Runner::new(10.0);
+        r.load(m);
+        let track = |id, x: f64, vx: f64| Contact {
+            id,
+            class: contact_class::BOAT,
+            confirmed: 1,
+            position: [x, 0.0],
+            velocity: [vx, 0.0],
+            ..Default::default()
+        };
+        let mut at = |k: u64, contacts: &[Contact]| {
+            let t = k * S / 5;
+            let w = World {
+                own: OwnState::default(),
+                contacts,
+                contacts_stamp_ns: t,
+            };
+            r.update(t, &w);
+            r.step_name()
+        };
+        // #3 followed at 7 m/s for 4 s: settled.
+        for k in 0..=20u64 {
+            at(k, &[track(3, 40.0 + 1.4 * k as f64, 7.0)]);
+        }
+        // #3 is gone. A boat-class track where the target went but at 5 m/s (a young track on
+        // the trail it leaves) is not the target; one at its speed 20 deg off its course (it
+        // turned while predicted) is.
+        assert_eq!(at(21, &[track(8, 69.4, 5.0)]), "follow #3");
+        // Nor is one coasting, a prediction, at the right place and speed.
+        let coasting = Contact {
+            coasting: 1,
+            ..track(9, 70.8, 7.0)
+        };
+        assert_eq!(at(22, &[coasting]), "follow #3");
+        let (s, c) = 20f64.to_radians().sin_cos();
+        let turned = Contact {
+            velocity: [7.0 * c, 7.0 * s],
+            ..track(8, 72.2, 0.0)
+        };
+        assert_eq!(at(23, &[turned]), "follow #8");
     }
 
     #[test]
