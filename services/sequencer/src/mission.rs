@@ -433,7 +433,7 @@ const LOCK_MAX_COAST_S: f64 = 1.0;
 /// unseen. The filtered velocity may be a few tenths of a m/s off: 0.7 m/s too fast once put the
 /// boat 11 m (centre to centre) behind a target it meant to keep 20 m behind, after 8 s unseen.
 /// Since young and coasting tracks no longer drag the lock's velocity, half that keeps a margin;
-/// with 1 m/s every break of the target's track (it is not detected in about a third of follow_boat's
+/// with 1 m/s every break of the target's track (not detected in about a third of follow_boat's
 /// frames) fell back 5-10 m, and the run's follow RMS was 5.2 m rather than 3.8 m.
 const LOST_BACKOFF_MPS: f64 = 0.5;
 
@@ -452,11 +452,11 @@ fn ahead(p: [f64; 2], course: f64, d: f64) -> [f64; 2] {
 const REACQUIRE_RADIUS_M: f64 = 15.0;
 /// ... plus this much per second since it was last seen (the prediction's error grows) ...
 const REACQUIRE_GROWTH_MPS: f64 = 2.0;
-/// ... and moves like it did: within this much (m/s) of its filtered velocity while the lock is
-/// young (locked for less than [`LOCK_SETTLE_S`]), whose velocity may still be junk. A false track
-/// on the water nearby stands still; a duplicate's junk velocity is far off.
+/// ... and moves like it did: within this much (m/s) of its filtered velocity. A false track on
+/// the water nearby stands still; a duplicate's junk velocity is far off.
 const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
-/// Once the lock has settled, and for tracks the classifier calls false alarms, the speed must
+/// Once the lock has settled ([`LOCK_SETTLE_S`]; before, its velocity may still be a young
+/// track's junk), and for tracks the classifier calls false alarms, the speed must
 /// also match within this much (m/s); the course may differ more, as the target may have turned
 /// while it was predicted on its old course. Behind a boat followed from astern the tracker finds
 /// young tracks on the trail of map cells it leaves, which report 1-4 m/s for a 7 m/s boat and
