@@ -945,6 +945,27 @@ mod tests {
 
     const S: u64 = 1_000_000_000;
 
+    /// A runner on a mission that follows the nearest boat 20 m astern.
+    fn following_a_boat() -> Runner {
+        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
+            .unwrap();
+        let mut r = Runner::new(10.0);
+        r.load(m);
+        r
+    }
+
+    /// A confirmed boat-class track at (`x`, 0) moving east at `vx`.
+    fn boat_track(id: u32, x: f64, vx: f64) -> Contact {
+        Contact {
+            id,
+            class: contact_class::BOAT,
+            confirmed: 1,
+            position: [x, 0.0],
+            velocity: [vx, 0.0],
+            ..Default::default()
+        }
+    }
+
     fn world(position: [f64; 2]) -> World<'static> {
         World {
             own: OwnState {
@@ -1126,18 +1147,8 @@ mod tests {
 
     #[test]
     fn follow_locks_the_nearest_of_a_class_and_predicts_it() {
-        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
-            .unwrap();
-        let mut r = Runner::new(10.0);
-        r.load(m);
-        let boat = |id, x: f64| Contact {
-            id,
-            class: contact_class::BOAT,
-            confirmed: 1,
-            position: [x, 0.0],
-            velocity: [2.0, 0.0],
-            ..Default::default()
-        };
+        let mut r = following_a_boat();
+        let boat = |id, x: f64| boat_track(id, x, 2.0);
         let contacts = [boat(1, 300.0), boat(2, 100.0)];
         let w = World {
             own: OwnState::default(),
@@ -1260,17 +1271,10 @@ mod tests {
 
     #[test]
     fn following_trusts_motion_over_the_class_and_never_takes_its_own_wake() {
-        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
-            .unwrap();
-        let mut r = Runner::new(10.0);
-        r.load(m);
+        let mut r = following_a_boat();
         let track = |id, class, x: f64, vx: f64| Contact {
-            id,
             class,
-            confirmed: 1,
-            position: [x, 0.0],
-            velocity: [vx, 0.0],
-            ..Default::default()
+            ..boat_track(id, x, vx)
         };
         let mut at = |t: u64, own_x: f64, contacts: &[Contact]| {
             let w = World {
@@ -1326,18 +1330,8 @@ mod tests {
 
     #[test]
     fn the_lock_smooths_the_targets_velocity_and_drops_a_track_that_falls_behind_it() {
-        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
-            .unwrap();
-        let mut r = Runner::new(10.0);
-        r.load(m);
-        let track = |x: f64, vx: f64| Contact {
-            id: 3,
-            class: contact_class::BOAT,
-            confirmed: 1,
-            position: [x, 0.0],
-            velocity: [vx, 0.0],
-            ..Default::default()
-        };
+        let mut r = following_a_boat();
+        let track = |x: f64, vx: f64| boat_track(3, x, vx);
         let mut at = |t: u64, contacts: &[Contact]| {
             let w = World {
                 own: OwnState::default(),
@@ -1380,23 +1374,14 @@ mod tests {
         // went, still reads 6 m/s for a second. How far it drags the lock's velocity depends on
         // how sure its filter is.
         let lock_velocity_after_young_track = |young_velocity_var: f32| {
-            let m =
-                Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
-                    .unwrap();
-            let mut r = Runner::new(10.0);
-            r.load(m);
+            let mut r = following_a_boat();
             let track = |id, x: f64, vx: f64, var: f32| {
                 let mut covariance = [0.0; 16];
                 covariance[10] = var;
                 covariance[15] = var;
                 Contact {
-                    id,
-                    class: contact_class::BOAT,
-                    confirmed: 1,
-                    position: [x, 0.0],
-                    velocity: [vx, 0.0],
                     covariance,
-                    ..Default::default()
+                    ..boat_track(id, x, vx)
                 }
             };
             let mut velocity = [0.0; 2];
@@ -1432,18 +1417,7 @@ mod tests {
 
     #[test]
     fn a_settled_lock_takes_up_only_a_track_at_the_targets_speed_though_on_a_new_course() {
-        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
-            .unwrap();
-        let mut r = Runner::new(10.0);
-        r.load(m);
-        let track = |id, x: f64, vx: f64| Contact {
-            id,
-            class: contact_class::BOAT,
-            confirmed: 1,
-            position: [x, 0.0],
-            velocity: [vx, 0.0],
-            ..Default::default()
-        };
+        let mut r = following_a_boat();
         let mut at = |k: u64, contacts: &[Contact]| {
             let t = k * S / 5;
             let w = World {
@@ -1456,32 +1430,29 @@ mod tests {
         };
         // #3 followed at 7 m/s for 4 s: settled.
         for k in 0..=20u64 {
-            at(k, &[track(3, 40.0 + 1.4 * k as f64, 7.0)]);
+            at(k, &[boat_track(3, 40.0 + 1.4 * k as f64, 7.0)]);
         }
         // #3 is gone. A boat-class track where the target went but at 5 m/s (a young track on
         // the trail it leaves) is not the target; one at its speed 20 deg off its course (it
         // turned while predicted) is.
-        assert_eq!(at(21, &[track(8, 69.4, 5.0)]), "follow #3");
+        assert_eq!(at(21, &[boat_track(8, 69.4, 5.0)]), "follow #3");
         // Nor is one coasting, a prediction, at the right place and speed.
         let coasting = Contact {
             coasting: 1,
-            ..track(9, 70.8, 7.0)
+            ..boat_track(9, 70.8, 7.0)
         };
         assert_eq!(at(22, &[coasting]), "follow #3");
         let (s, c) = 20f64.to_radians().sin_cos();
         let turned = Contact {
             velocity: [7.0 * c, 7.0 * s],
-            ..track(8, 72.2, 0.0)
+            ..boat_track(8, 72.2, 0.0)
         };
         assert_eq!(at(23, &[turned]), "follow #8");
     }
 
     #[test]
     fn a_followed_track_coasting_for_long_gives_way_to_a_detected_one_where_the_target_is() {
-        let m = Mission::parse("[[step]]\ntype = \"follow\"\nclass = \"boat\"\nastern_m = 20\n")
-            .unwrap();
-        let mut r = Runner::new(10.0);
-        r.load(m);
+        let mut r = following_a_boat();
         let track = |id, x: f64, y: f64, vx: f64, coasting| Contact {
             id,
             class: contact_class::BOAT,
