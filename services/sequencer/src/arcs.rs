@@ -8,8 +8,8 @@
 //! it. Reasons:
 //! - a heading-bin table quantizes heading: with 64 bins (5.6 deg) a point 40 m out moves up to 3.9 m
 //!   sideways, so every corridor would need that much extra margin; rotation is exact;
-//! - one table of two 128-bit masks per cell (whole arc, first `near_m`) is ~1.4 MB at 0.5 m; one
-//!   per heading bin (64) would be ~90 MB;
+//! - one table of three 128-bit masks per cell (whole arc, first `followed_lookahead_m`, first
+//!   `near_m`) is ~2.1 MB at 0.5 m; one per heading bin (64) would be ~135 MB;
 //! - the per-cycle cost stays one pass over the map: the pass only tests each cell's cost and
 //!   hazard (cheap, branch-predictable), and the rotation plus table lookup runs only for the few
 //!   cells that are hazards ([`ArcSet::collect_hazards`] then [`ArcSet::blocked`]).
@@ -74,6 +74,12 @@ pub struct ArcConfig {
     /// `followed_exempt_m / 2` of its track line and moving like it (or, unless a channel marker,
     /// along its course no faster than it), is its wake and blocks no arc.
     pub followed_wake_m: f64,
+    /// While the followed target is within this range (m), an arc is judged only over its first
+    /// this many metres ([`Blocked::follow`]). The target clears the water up to itself, and it
+    /// meets what lies beyond it first; the boat goes where it went. Judged over 40 m, patches of
+    /// sun glint 25-40 m out that the tracker holds as boats or extended objects for a few seconds
+    /// swerved the boat off the target's track and lost it 10-15 m of range each time.
+    pub followed_lookahead_m: f64,
 }
 
 impl Default for ArcConfig {
@@ -97,6 +103,7 @@ impl Default for ArcConfig {
             moving_margin_m: 2.0,
             followed_exempt_m: 8.0,
             followed_wake_m: 40.0,
+            followed_lookahead_m: 25.0,
         }
     }
 }
@@ -140,6 +147,7 @@ impl ArcConfig {
             ("moving_margin_m", self.moving_margin_m),
             ("followed_exempt_m", self.followed_exempt_m),
             ("followed_wake_m", self.followed_wake_m),
+            ("followed_lookahead_m", self.followed_lookahead_m),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));
@@ -194,6 +202,9 @@ impl Arc {
 pub struct Blocked {
     /// Bit i set: arc i is blocked somewhere along its length.
     pub mask: u128,
+    /// Bit i set: arc i is blocked within [`ArcConfig::followed_lookahead_m`] of the boat (a subset
+    /// of `mask`).
+    pub follow: u128,
     /// Bit i set: arc i is blocked within [`ArcConfig::near_m`] of the boat (a subset of `mask`).
     pub near: u128,
     /// Hazards blocking an arc within `near_m`, to port (y > 0) and to starboard.
@@ -205,6 +216,7 @@ impl Blocked {
     /// Both sets of obstacles together.
     pub fn merge(&mut self, other: Blocked) {
         self.mask |= other.mask;
+        self.follow |= other.follow;
         self.near |= other.near;
         self.port += other.port;
         self.starboard += other.starboard;
@@ -291,10 +303,10 @@ pub struct ArcSet {
     /// Table cells from the vessel to each edge; the table is `2 * half` cells square.
     half: i32,
     side: usize,
-    /// Body-frame cell -> arcs whose corridor covers it, and (second mask) those that cover it
-    /// within their first [`ArcConfig::near_m`]. Row-major over (y, x); both masks of a cell sit
-    /// side by side, so a hazard costs one lookup.
-    lut: Vec<[u128; 2]>,
+    /// Body-frame cell -> arcs whose corridor covers it, those that cover it within their first
+    /// [`ArcConfig::followed_lookahead_m`], and those within their first [`ArcConfig::near_m`].
+    /// Row-major over (y, x); the masks of a cell sit side by side, so a hazard costs one lookup.
+    lut: Vec<[u128; 3]>,
     /// Largest distance from the vessel at which any corridor reaches (m).
     reach: f64,
     hazard_u8: u8,
@@ -328,7 +340,7 @@ impl ArcSet {
             inv_resolution: 1.0 / resolution,
             half,
             side,
-            lut: vec![[0; 2]; side * side],
+            lut: vec![[0; 3]; side * side],
             reach,
             hazard_u8: (cfg.hazard_threshold * 255.0).ceil().clamp(0.0, 255.0) as u8,
         };
@@ -343,14 +355,16 @@ impl ArcSet {
                     Arc::point(arc.curvature, s),
                     radius,
                     1u128 << a,
-                    s <= cfg.near_m,
+                    [s <= cfg.followed_lookahead_m, s <= cfg.near_m],
                 );
             }
         }
         Ok(set)
     }
 
-    fn stamp_disc(&mut self, centre: [f64; 2], radius: f64, bit: u128, near: bool) {
+    /// Marks `bit` in the cells of a disc; `within` says whether the disc lies within the follow
+    /// look-ahead and within `near_m`.
+    fn stamp_disc(&mut self, centre: [f64; 2], radius: f64, bit: u128, within: [bool; 2]) {
         let r = self.resolution;
         let lo = |v: f64| (((v - radius) / r).floor() as i32 + self.half).max(0);
         let hi = |v: f64| (((v + radius) / r).ceil() as i32 + self.half).min(self.side as i32 - 1);
@@ -361,8 +375,10 @@ impl ArcSet {
                 if (x - centre[0]).powi(2) + (y - centre[1]).powi(2) <= radius * radius {
                     let k = j as usize * self.side + i as usize;
                     self.lut[k][0] |= bit;
-                    if near {
-                        self.lut[k][1] |= bit;
+                    for (m, inside) in within.into_iter().enumerate() {
+                        if inside {
+                            self.lut[k][m + 1] |= bit;
+                        }
                     }
                 }
             }
@@ -508,8 +524,9 @@ impl ArcSet {
             let Some(k) = self.table_index(body) else {
                 continue;
             };
-            let [all, near] = self.lut[k];
+            let [all, follow, near] = self.lut[k];
             out.mask |= all;
+            out.follow |= follow;
             if near != 0 {
                 out.near |= near;
                 if body[1] > 0.0 {
@@ -563,6 +580,9 @@ impl ArcSet {
                 });
                 if let Some(s) = first_conflict {
                     out.mask |= 1u128 << a;
+                    if s <= self.cfg.followed_lookahead_m {
+                        out.follow |= 1u128 << a;
+                    }
                     if s <= self.cfg.near_m {
                         out.near |= 1u128 << a;
                         near_hit = true;

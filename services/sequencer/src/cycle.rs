@@ -312,6 +312,14 @@ impl Sequencer {
                     &own,
                     now,
                 ));
+                // Close behind the target, arcs are judged only as far as the follow look-ahead
+                // (see `ArcConfig::followed_lookahead_m`); the status reports what was judged.
+                if target.is_some_and(|t| {
+                    (t.position[0] - own.position[0]).hypot(t.position[1] - own.position[1])
+                        <= self.arcs.config().followed_lookahead_m
+                }) {
+                    blocked.mask = blocked.follow;
+                }
                 status.blocked_arcs = [blocked.mask as u64, (blocked.mask >> 64) as u64];
                 let guidance = match directive {
                     Directive::Idle | Directive::Hold => None,
@@ -393,9 +401,17 @@ impl Sequencer {
                 own.yaw + self.arcs.arcs()[arc].direction
             };
             let g = Guidance { heading, ..g };
+            // Well above the speed asked for, the speed loop may brake astern: coasting down
+            // from 9 to 7 m/s takes seconds, and a follower that closed to 12 m behind its
+            // target lost it (the target's stern came inside perception's 8 m minimum range).
+            let floor = if own.speed_mps > g.speed_mps + BRAKE_ABOVE_MPS {
+                cfg.brake_throttle_pct
+            } else {
+                cfg.min_throttle_pct
+            };
             return (
                 command_mode::NAVIGATING,
-                self.controller.step(cfg, own, &g, dt),
+                self.controller.step_with_floor(cfg, own, &g, dt, floor),
             );
         }
         if let Some(arc) = self.chooser.choose(&self.arcs, blocked.near, bearing) {
@@ -438,12 +454,18 @@ impl Sequencer {
 
 /// Braking astern stops below this speed (m/s): astern power on a stopped boat would back it up.
 const BRAKE_UNTIL_MPS: f64 = 0.3;
+/// On a free arc, the boat brakes astern only when this much (m/s) faster than asked: a smaller
+/// speed error is left to the drag, so the throttle does not swing through astern.
+const BRAKE_ABOVE_MPS: f64 = 1.0;
 
 /// Arcs that would meet a contact: a moving one where it will be (the map holds where it is now), a
-/// slow, young, marker or extended one where it is (the tracker may hold a buoy before the map
-/// confirms it at the arc threshold). Confirmed tracks only, not false alarms, not the contact
-/// being followed, nor one within `followed_exempt_m` of the followed target or on its wake, not
-/// shore pieces larger than `contact_max_extent_m` (the map has those).
+/// slow, young or marker one where it is (the tracker may hold a buoy before the map confirms it at
+/// the arc threshold). Confirmed tracks only, not false alarms, not the contact being followed, nor
+/// one within `followed_exempt_m` of the followed target or on its wake. Not extended objects nor
+/// any contact larger than `contact_max_extent_m`: shore and bank pieces do not move and the map
+/// holds them, and the classifier's extended class also takes the 10-20 m patches of sun glint that
+/// live a few seconds, drift at 2-6 m/s and never reach the map's arc threshold (follow_boat's log:
+/// as contacts they swerved the boat off the target's track).
 fn blocked_by_contacts(
     arcs: &ArcSet,
     contacts: &ContactList,
@@ -475,13 +497,13 @@ fn blocked_by_contacts(
                                 0.5 * cfg.followed_exempt_m,
                             )
                     })
+                    && c.class != contact_class::EXTENDED
                     && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
             })
             .map(|c| {
                 let moving = c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
                     && c.age_s as f64 >= cfg.moving_min_age_s
-                    && c.class != contact_class::CHANNEL_MARKER
-                    && c.class != contact_class::EXTENDED;
+                    && c.class != contact_class::CHANNEL_MARKER;
                 let velocity = if moving { c.velocity } else { [0.0; 2] };
                 // Two sigma of position, capped: a loose new track must not block everything.
                 let sigma = (c.covariance[0].max(c.covariance[5]) as f64)

@@ -546,11 +546,17 @@ impl Lock {
                 && stamp_ns.saturating_sub(self.detected_ns) as f64 / NS > LOCK_MAX_COAST_S
         };
         let settled = stamp_ns.saturating_sub(self.locked_ns) as f64 / NS >= LOCK_SETTLE_S;
+        // While unseen the target's velocity may have changed (two sigmas of the lock's drift):
+        // the gate for its own track widens by as much. Otherwise a target that turned while
+        // unseen stays refused by its own track, since only a track let through moves the lock's
+        // velocity towards its new course. (New tracks keep the fixed gates: widened, they let
+        // ghosts ahead of the target take the lock.)
+        let drift = 2.0 * (LOCK_VELOCITY_DRIFT * self.unseen_s(stamp_ns)).sqrt();
         if let Some(c) = contacts.iter().find(|c| c.id == self.id && !coasted_out(c)) {
             let max_gap = if settled {
-                CONTINUE_VELOCITY_MPS
+                CONTINUE_VELOCITY_MPS + drift
             } else if c.class == contact_class::FALSE_ALARM {
-                REACQUIRE_VELOCITY_MPS
+                REACQUIRE_VELOCITY_MPS + drift
             } else {
                 f64::INFINITY
             };
@@ -577,9 +583,13 @@ impl Lock {
             .filter(|c| c.confirmed == 1 && c.coasting == 0 && c.id != self.id && off_own(c))
             .filter(|c| {
                 let strict = settled || c.class == contact_class::FALSE_ALARM;
+                // A young track's speed is a few updates from rest: the speed gate widens by
+                // two of its own sigmas (none when its covariance is not a number).
+                let sigma = track_velocity_var(c).max(0.0).sqrt();
+                let speed_slack = if sigma.is_finite() { 2.0 * sigma } else { 0.0 };
                 d(c) <= gate
                     && self.velocity_gap(c) <= REACQUIRE_VELOCITY_MPS
-                    && (!strict || self.speed_gap(c) <= REACQUIRE_SPEED_MPS)
+                    && (!strict || self.speed_gap(c) <= REACQUIRE_SPEED_MPS + speed_slack)
             })
             .min_by(|a, b| score(a).total_cmp(&score(b)).then(a.id.cmp(&b.id)))
     }
@@ -918,12 +928,17 @@ impl Runner {
 /// mean of its filter's two velocity variances, at least [`LOCK_VELOCITY_MEASUREMENT_FLOOR`]
 /// (and at most 100^2: a covariance that is not finite says nothing).
 fn velocity_measurement_var(c: &Contact) -> f64 {
-    let filter_var = 0.5 * (c.covariance[10] as f64 + c.covariance[15] as f64);
+    let filter_var = track_velocity_var(c);
     if filter_var.is_finite() {
         filter_var.clamp(LOCK_VELOCITY_MEASUREMENT_FLOOR, 1e4)
     } else {
         1e4
     }
+}
+
+/// The tracker's own variance (m^2/s^2, per axis) of a track's velocity.
+fn track_velocity_var(c: &Contact) -> f64 {
+    0.5 * (c.covariance[10] as f64 + c.covariance[15] as f64)
 }
 
 /// Course (rad, ENU) of a velocity, if it is fast enough to have one.
@@ -1448,6 +1463,74 @@ mod tests {
             ..boat_track(8, 72.2, 0.0)
         };
         assert_eq!(at(23, &[turned]), "follow #8");
+    }
+
+    #[test]
+    fn a_target_that_turned_while_unseen_is_taken_up_again_on_its_new_course() {
+        // #3 followed east at 7 m/s for 4 s (settled), then the same track reports the boat 30
+        // degrees to port: a 3.6 m/s velocity gap, more than the 2 m/s a seen target may jump.
+        let course_after = |unseen_frames: u64| {
+            let mut r = following_a_boat();
+            let mut at = |k: u64, contacts: &[Contact]| {
+                let t = k * S / 5;
+                let w = World {
+                    own: OwnState::default(),
+                    contacts,
+                    contacts_stamp_ns: t,
+                };
+                r.update(t, &w)
+            };
+            for k in 0..=20u64 {
+                at(k, &[boat_track(3, 40.0 + 1.4 * k as f64, 7.0)]);
+            }
+            for k in 21..21 + unseen_frames {
+                at(k, &[]);
+            }
+            let k = 21 + unseen_frames;
+            let (s, c) = 30f64.to_radians().sin_cos();
+            let turned = Contact {
+                velocity: [7.0 * c, 7.0 * s],
+                ..boat_track(3, 40.0 + 1.4 * k as f64, 0.0)
+            };
+            match at(k, &[turned]) {
+                Directive::Follow { course, .. } => course,
+                other => panic!("{other:?}"),
+            }
+        };
+        // Seen a frame ago, the jump is refused: the target is predicted on its course ...
+        assert_eq!(course_after(0), 0.0);
+        // ... unseen for 3 s it may have turned: the track is taken and the course follows it.
+        assert!(course_after(15) > 0.1, "{}", course_after(15));
+    }
+
+    #[test]
+    fn a_young_tracks_speed_is_judged_within_its_own_uncertainty() {
+        let mut r = following_a_boat();
+        let mut at = |k: u64, contacts: &[Contact]| {
+            let t = k * S / 5;
+            let w = World {
+                own: OwnState::default(),
+                contacts,
+                contacts_stamp_ns: t,
+            };
+            r.update(t, &w);
+            r.step_name()
+        };
+        for k in 0..=20u64 {
+            at(k, &[boat_track(3, 40.0 + 1.4 * k as f64, 7.0)]);
+        }
+        // #3 is gone. A new track where the target is, still gathering speed (4.2 m/s): refused
+        // with a settled track's velocity sigma of 0.5 m/s ...
+        let with_sigma = |id, sigma: f32| {
+            let mut c = boat_track(id, 69.4, 4.2);
+            c.covariance[10] = sigma * sigma;
+            c.covariance[15] = sigma * sigma;
+            c
+        };
+        assert_eq!(at(21, &[with_sigma(8, 0.5)]), "follow #3");
+        // ... taken up with the 1.5 m/s of a track a few updates old, whose speed may still be
+        // far off (the target turned away while predicted, and its new track starts at rest).
+        assert_eq!(at(22, &[with_sigma(9, 1.5)]), "follow #9");
     }
 
     #[test]

@@ -79,6 +79,25 @@ fn open_water_drives_to_the_goal() {
 }
 
 #[test]
+fn far_above_the_speed_asked_for_the_boat_brakes_astern_and_near_it_only_cuts_power() {
+    // Asked for 5 m/s on open water: at 8 m/s the speed loop brakes astern, at 5.5 it does not.
+    let throttle_at = |speed: f64| {
+        let mut seq = started(EAST);
+        let mut throttle = f32::NAN;
+        for k in 1..=10 {
+            seq.on_ins(&ins(k * 100 * MS, 0.0, speed)).unwrap();
+            let (h, c) = map(k * 100 * MS, &[]);
+            seq.on_map(&h, &c).unwrap();
+            throttle = seq.cycle("test").0.throttle_pct;
+        }
+        throttle
+    };
+    assert!(throttle_at(8.0) < -10.0, "{}", throttle_at(8.0));
+    let near = throttle_at(5.5);
+    assert!((0.0..10.0).contains(&near), "{near}");
+}
+
+#[test]
 fn obstacle_dead_ahead_turns_away() {
     let mut seq = started(EAST);
     let buoy = [(20.0, 0.0), (20.5, 0.0), (20.0, 0.5), (20.0, -0.5)];
@@ -306,16 +325,14 @@ fn a_boat_about_to_cross_ahead_blocks_the_course_the_empty_map_leaves_open() {
     assert_eq!(status.blocked_arcs, [0, 0]);
     assert_eq!(status.chosen_arc as usize, straight);
 
-    // A track younger than `moving_min_age_s`, or one the classifier calls a channel marker or an
-    // extended obstacle, blocks where it is: its velocity is a few noisy updates or its blob
-    // changing shape, not motion. Far to starboard, it leaves the straight arc free.
+    // A track younger than `moving_min_age_s`, or one the classifier calls a channel marker,
+    // blocks where it is: its velocity is a few noisy updates or its blob changing shape, not
+    // motion. Far to starboard, it leaves the straight arc free.
     let mut young = crossing;
     young.contacts[0].age_s = 0.8;
     let mut marker = crossing;
     marker.contacts[0].class = contact_class::CHANNEL_MARKER;
-    let mut extended = crossing;
-    extended.contacts[0].class = contact_class::EXTENDED;
-    for list in [young, marker, extended] {
+    for list in [young, marker] {
         let mut seq = started(EAST);
         feed(&mut seq, 100 * MS, &[]);
         seq.on_contacts(&list);
@@ -358,15 +375,64 @@ fn a_buoy_the_tracker_holds_blocks_arcs_before_the_map_confirms_it() {
 }
 
 #[test]
-fn a_shore_sized_contact_is_left_to_the_map_whatever_its_velocity() {
-    // A 20 x 34 m blob of bank, "moving" at 6 m/s as it changes shape, across our course.
+fn shore_sized_and_extended_contacts_are_left_to_the_map_whatever_their_velocity() {
+    // A 20 x 34 m blob of bank, "moving" at 6 m/s as it changes shape, across our course; a boat
+    // the same size; and a 10 x 8 m patch the classifier calls extended (sun glint) dead ahead.
     let mut bank = boat_contacts(100 * MS, [25.0, -25.0], [0.0, 6.0]);
     bank.contacts[0].class = contact_class::EXTENDED;
     bank.contacts[0].extent = [20.0, 34.0, 3.0];
+    let mut big_boat = bank;
+    big_boat.contacts[0].class = contact_class::BOAT;
+    let mut patch = boat_contacts(100 * MS, [20.0, 0.0], [3.0, 2.0]);
+    patch.contacts[0].class = contact_class::EXTENDED;
+    patch.contacts[0].extent = [10.0, 8.0, 2.0];
+    for list in [bank, big_boat, patch] {
+        let mut seq = started(EAST);
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&list);
+        let (cmd, status) = seq.cycle("test");
+        assert_eq!(status.blocked_arcs, [0, 0], "{:?}", list.contacts[0]);
+        assert_eq!(cmd.mode, command_mode::NAVIGATING);
+    }
+    // The map still holds an extended obstacle that persists.
     let mut seq = started(EAST);
-    feed(&mut seq, 100 * MS, &[]);
-    seq.on_contacts(&bank);
+    feed(&mut seq, 100 * MS, &[(20.0, 0.0)]);
+    seq.on_contacts(&patch);
+    let straight = seq.arcs().nearest(0.0);
+    assert!(seq.cycle("test").1.arc_blocked(straight));
+}
+
+#[test]
+fn close_behind_a_followed_boat_only_the_water_up_to_the_look_ahead_is_judged() {
+    // Following boat #3 heading east at 5 m/s, 20 m ahead. A hazard cell dead ahead 37 m out and a
+    // boat-class contact 38 m out beside the target's track: beyond the follow look-ahead (25 m,
+    // whose corridor is 9 m wide at its end), so the boat stays on the target's track.
+    const FOLLOW: &str = "[[step]]\ntype = \"follow\"\ncontact_id = 3\nastern_m = 20.0\n";
+    let mut contacts = boat_contacts(100 * MS, [38.0, -3.0], [0.0, 0.0]);
+    contacts.count = 2;
+    contacts.contacts[0].extent = [2.0, 2.0, 1.0];
+    contacts.contacts[1] = Contact {
+        id: 3,
+        ..boat_contacts(100 * MS, [20.0, 0.0], [5.0, 0.0]).contacts[0]
+    };
+    let far = [(37.0, 0.0)];
+    let mut seq = started(FOLLOW);
+    feed(&mut seq, 100 * MS, &far);
+    seq.on_contacts(&contacts);
     let (cmd, status) = seq.cycle("test");
+    let straight = seq.arcs().nearest(0.0);
     assert_eq!(status.blocked_arcs, [0, 0]);
+    assert_eq!(status.chosen_arc as usize, straight);
     assert_eq!(cmd.mode, command_mode::NAVIGATING);
+
+    // On the way to a waypoint the same water blocks the straight arc ...
+    let mut seq = started(EAST);
+    feed(&mut seq, 100 * MS, &far);
+    seq.on_contacts(&contacts);
+    assert!(seq.cycle("test").1.arc_blocked(straight));
+    // ... and so does a hazard within the look-ahead behind the target.
+    let mut seq = started(FOLLOW);
+    feed(&mut seq, 100 * MS, &[(12.0, 2.0)]);
+    seq.on_contacts(&contacts);
+    assert!(seq.cycle("test").1.arc_blocked(straight));
 }

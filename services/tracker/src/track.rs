@@ -267,7 +267,7 @@ impl Tracker {
         // for noise. A window that found weak cells wherever a track is predicted to be would let
         // the track walk on at its velocity: hence also the guided threshold above the map's
         // background and the smallest size of a weak component.
-        let guides = |t: &Track| t.confirmed && t.x[2].hypot(t.x[3]) >= GUIDE_MIN_SPEED_MPS;
+        let guides = |t: &Track| guided(t);
         let thresholds = GuideThresholds {
             hazard: self.cfg.guided_hazard_threshold,
             lifted_hazard: self.cfg.guided_lifted_hazard_threshold,
@@ -279,8 +279,7 @@ impl Tracker {
             self.tracks.iter().filter(|t| guides(t)).map(|t| {
                 // Half the diagonal, capped: a bank-sized track must not lower the threshold
                 // over a whole shore.
-                let half = 0.5 * (t.extent[0].hypot(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M);
-                ([t.x[0], t.x[1]], margin + half)
+                ([t.x[0], t.x[1]], guide_radius(t, margin, stamp))
             }),
         );
         let params = self.cfg.detect_params(&g);
@@ -295,7 +294,8 @@ impl Tracker {
             self.classes.push(self.model.classify(d));
         }
         let own = Vector2::new(hdr.vessel.position[0], hdr.vessel.position[1]);
-        let assigned = self.assign(own);
+        let mut assigned = self.assign(own);
+        let manoeuvring = self.assign_manoeuvring(&mut assigned, stamp);
         let nd = self.detections.len();
         let mut used = vec![false; nd];
         let window_mask = if self.cfg.confirm_window == 32 {
@@ -308,6 +308,9 @@ impl Tracker {
             match assigned[ti] {
                 Some(di) => {
                     used[di] = true;
+                    if manoeuvring[ti] {
+                        open_for_manoeuvre(t, stamp);
+                    }
                     let d = &self.detections[di];
                     let r = measurement_noise(&self.cfg, own, d.position);
                     kalman_update(t, Vector2::new(d.position[0], d.position[1]), &r);
@@ -462,6 +465,41 @@ impl Tracker {
         out
     }
 
+    /// A guided track that found no detection in its gate takes the nearest unassigned one in its
+    /// guide window, which grows while the track coasts as far as a turning boat can leave its
+    /// straight-line prediction. A followed boat that turned 30 degrees left its track's gate
+    /// within a second: the track coasted on along the old course and died, the boat mapped too
+    /// weakly to start a new one for seconds, and the follower lost it at every turn. Returns,
+    /// per track, whether it was assigned here.
+    fn assign_manoeuvring(&self, assigned: &mut [Option<usize>], stamp: u64) -> Vec<bool> {
+        let mut manoeuvring = vec![false; self.tracks.len()];
+        let mut taken = vec![false; self.detections.len()];
+        for di in assigned.iter().flatten() {
+            taken[*di] = true;
+        }
+        for (ti, t) in self.tracks.iter().enumerate() {
+            // Only after a missed map: one map's miss of the gate is noise, not a turn.
+            if assigned[ti].is_some() || !guided(t) || t.misses == 0 {
+                continue;
+            }
+            let radius = guide_radius(t, self.cfg.guide_margin_m, stamp);
+            let nearest = self
+                .detections
+                .iter()
+                .enumerate()
+                .filter(|&(di, _)| !taken[di])
+                .map(|(di, d)| (di, (d.position[0] - t.x[0]).hypot(d.position[1] - t.x[1])))
+                .filter(|&(_, dist)| dist <= radius)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((di, _)) = nearest {
+                assigned[ti] = Some(di);
+                taken[di] = true;
+                manoeuvring[ti] = true;
+            }
+        }
+        manoeuvring
+    }
+
     fn write(&self, stamp: u64, seq: u64, source: &str, out: &mut ContactList) {
         out.hdr = Header::new(seq, stamp, source);
         let mut n = 0;
@@ -551,6 +589,51 @@ const GUIDE_MAX_EXTENT_M: f64 = 8.0;
 
 /// Tracks slower than this (m/s) stay in their cells long enough for the map to confirm them.
 const GUIDE_MIN_SPEED_MPS: f64 = 1.0;
+
+/// Sideways acceleration (m/s^2) of a turning boat: the sets' boats turn 30 degrees in about 2 s
+/// at 7 m/s (1.8 m/s^2). A coasting track's guide window grows by how far such a turn takes the
+/// boat off its straight-line prediction ...
+const MANOEUVRE_ACCEL_MPS2: f64 = 2.0;
+/// ... up to this much (m).
+const MANOEUVRE_MAX_M: f64 = 8.0;
+
+/// Whether a track is one the map lags (moving, confirmed): its guide window lowers the detection
+/// threshold and it may follow a manoeuvre.
+fn guided(t: &Track) -> bool {
+    t.confirmed && t.x[2].hypot(t.x[3]) >= GUIDE_MIN_SPEED_MPS
+}
+
+/// Seconds since a track's last detection, at `stamp`.
+fn coasted_s(t: &Track, stamp: u64) -> f64 {
+    stamp.saturating_sub(t.last_hit_ns) as f64 * 1e-9
+}
+
+/// Radius (m) of a guided track's window: the margin, half its diagonal (capped: a bank-sized
+/// track must not lower the threshold over a whole shore) and the manoeuvre growth.
+fn guide_radius(t: &Track, margin: f64, stamp: u64) -> f64 {
+    let half = 0.5 * (t.extent[0].hypot(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M);
+    let coast = coasted_s(t, stamp);
+    margin + half + (0.5 * MANOEUVRE_ACCEL_MPS2 * coast * coast).min(MANOEUVRE_MAX_M)
+}
+
+/// Before a manoeuvre update: the filter's covariance opens by what the turn may have changed
+/// since the last detection, so the update turns the track rather than averaging the new
+/// course away. The velocity opens across the course only: a turn changes the course, not the
+/// speed (opened both ways, the speed error of follow_boat's tracked boat grew from 3 % to 5 %).
+fn open_for_manoeuvre(t: &mut Track, stamp: u64) {
+    let coast = coasted_s(t, stamp);
+    let dv = MANOEUVRE_ACCEL_MPS2 * coast;
+    let dp = (0.5 * MANOEUVRE_ACCEL_MPS2 * coast * coast).min(MANOEUVRE_MAX_M);
+    let speed = t.x[2].hypot(t.x[3]);
+    // Unit normal to the course (guided tracks move, so the speed is not zero).
+    let n = Vector2::new(-t.x[3], t.x[2]) / speed.max(1e-9);
+    let across = n * n.transpose() * (dv * dv);
+    for k in 0..2 {
+        t.p[(k, k)] += dp * dp;
+    }
+    let mut velocity = t.p.fixed_view_mut::<2, 2>(2, 2);
+    velocity += across;
+}
 
 /// Smallest component (cells) that counts when it exists only through a guide window.
 const GUIDED_MIN_CELLS: u32 = 3;

@@ -249,6 +249,58 @@ fn a_hull_seen_once_in_the_average_keeps_its_track_because_it_stands_above_the_w
 }
 
 #[test]
+fn a_boat_that_turns_while_mapped_weakly_keeps_its_track_and_its_new_course() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    // 7 m/s north, fully mapped for 3 s; then it turns 40 degrees to port within 1 s. Two maps
+    // miss it, and afterwards the averaged map holds it only weakly (guided evidence, which can
+    // keep a track but not start one).
+    let (mut pos, mut course, mut first) = ([0.0f64, -30.0f64], 90f64.to_radians(), 0);
+    for k in 0..35u64 {
+        if (15..20).contains(&k) {
+            course += 8f64.to_radians();
+        }
+        pos = [pos[0] + 1.4 * course.cos(), pos[1] + 1.4 * course.sin()];
+        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let hazard = match k {
+            0..15 => Some(150),
+            15..17 => None,
+            _ => Some(100),
+        };
+        if let Some(h) = hazard {
+            paint_hull_rim(&grid, &mut cells, pos, [course.cos(), course.sin()], h);
+        }
+        t.update(
+            &map_header(grid, k, 200_000_000),
+            &cells,
+            "tracker",
+            &mut list,
+        )
+        .unwrap();
+        if k == 14 {
+            first = list
+                .as_slice()
+                .iter()
+                .find(|c| c.confirmed == 1)
+                .unwrap()
+                .id;
+        }
+    }
+    let confirmed: Vec<_> = list
+        .as_slice()
+        .iter()
+        .filter(|c| c.confirmed == 1)
+        .collect();
+    assert_eq!(confirmed.len(), 1, "{confirmed:?}");
+    let c = confirmed[0];
+    assert_eq!(c.id, first, "the track was not kept through the turn");
+    let track_course = c.velocity[1].atan2(c.velocity[0]).to_degrees();
+    assert!((track_course - 130.0).abs() < 10.0, "course {track_course}");
+    assert!((c.position[0] - pos[0]).hypot(c.position[1] - pos[1]) < 3.0);
+}
+
+#[test]
 fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
     let grid = grid_100m();
