@@ -295,7 +295,7 @@ impl Tracker {
         }
         let own = Vector2::new(hdr.vessel.position[0], hdr.vessel.position[1]);
         let mut assigned = self.assign(own);
-        let manoeuvring = self.assign_manoeuvring(&mut assigned, stamp);
+        self.assign_manoeuvring(&mut assigned, stamp);
         let nd = self.detections.len();
         let mut used = vec![false; nd];
         let window_mask = if self.cfg.confirm_window == 32 {
@@ -308,9 +308,6 @@ impl Tracker {
             match assigned[ti] {
                 Some(di) => {
                     used[di] = true;
-                    if manoeuvring[ti] {
-                        open_for_manoeuvre(t, stamp);
-                    }
                     let d = &self.detections[di];
                     let r = measurement_noise(&self.cfg, own, d.position);
                     kalman_update(t, Vector2::new(d.position[0], d.position[1]), &r);
@@ -469,10 +466,10 @@ impl Tracker {
     /// guide window, which grows while the track coasts as far as a turning boat can leave its
     /// straight-line prediction. A followed boat that turned 30 degrees left its track's gate
     /// within a second: the track coasted on along the old course and died, the boat mapped too
-    /// weakly to start a new one for seconds, and the follower lost it at every turn. Returns,
-    /// per track, whether it was assigned here.
-    fn assign_manoeuvring(&self, assigned: &mut [Option<usize>], stamp: u64) -> Vec<bool> {
-        let mut manoeuvring = vec![false; self.tracks.len()];
+    /// weakly to start a new one for seconds, and the follower lost it at every turn. The update
+    /// is the usual one: opening the covariance for the turn as well made the track's speed jump
+    /// by 1-1.5 m/s and the follower close in on the target.
+    fn assign_manoeuvring(&self, assigned: &mut [Option<usize>], stamp: u64) {
         let mut taken = vec![false; self.detections.len()];
         for di in assigned.iter().flatten() {
             taken[*di] = true;
@@ -494,10 +491,8 @@ impl Tracker {
             if let Some((di, _)) = nearest {
                 assigned[ti] = Some(di);
                 taken[di] = true;
-                manoeuvring[ti] = true;
             }
         }
-        manoeuvring
     }
 
     fn write(&self, stamp: u64, seq: u64, source: &str, out: &mut ContactList) {
@@ -614,25 +609,6 @@ fn guide_radius(t: &Track, margin: f64, stamp: u64) -> f64 {
     let half = 0.5 * (t.extent[0].hypot(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M);
     let coast = coasted_s(t, stamp);
     margin + half + (0.5 * MANOEUVRE_ACCEL_MPS2 * coast * coast).min(MANOEUVRE_MAX_M)
-}
-
-/// Before a manoeuvre update: the filter's covariance opens by what the turn may have changed
-/// since the last detection, so the update turns the track rather than averaging the new
-/// course away. The velocity opens across the course only: a turn changes the course, not the
-/// speed (opened both ways, the speed error of follow_boat's tracked boat grew from 3 % to 5 %).
-fn open_for_manoeuvre(t: &mut Track, stamp: u64) {
-    let coast = coasted_s(t, stamp);
-    let dv = MANOEUVRE_ACCEL_MPS2 * coast;
-    let dp = (0.5 * MANOEUVRE_ACCEL_MPS2 * coast * coast).min(MANOEUVRE_MAX_M);
-    let speed = t.x[2].hypot(t.x[3]);
-    // Unit normal to the course (guided tracks move, so the speed is not zero).
-    let n = Vector2::new(-t.x[3], t.x[2]) / speed.max(1e-9);
-    let across = n * n.transpose() * (dv * dv);
-    for k in 0..2 {
-        t.p[(k, k)] += dp * dp;
-    }
-    let mut velocity = t.p.fixed_view_mut::<2, 2>(2, 2);
-    velocity += across;
 }
 
 /// Smallest component (cells) that counts when it exists only through a guide window.
