@@ -80,6 +80,14 @@ pub struct ArcConfig {
     /// sun glint 25-40 m out that the tracker holds as boats or extended objects for a few seconds
     /// swerved the boat off the target's track and lost it 10-15 m of range each time.
     pub followed_lookahead_m: f64,
+    /// A track first seen within this range (m) blocks no arc until it is `late_birth_min_age_s`
+    /// old. Perception sees boats and buoys from 65 m, so a real one is tracked long before it is
+    /// this close; a track born this close is a stereo ghost of glint or of the target's wake. In
+    /// follow_boat's log a 5 m "boat" born 16 m off the starboard bow lived 2.6 s and, inflated by
+    /// its birth covariance, held the own boat inside its disc: every arc blocked, the boat braked
+    /// and turned hard away and lost its target for 45 s. The map still blocks what is real.
+    pub late_birth_m: f64,
+    pub late_birth_min_age_s: f64,
 }
 
 impl Default for ArcConfig {
@@ -104,6 +112,8 @@ impl Default for ArcConfig {
             followed_exempt_m: 8.0,
             followed_wake_m: 40.0,
             followed_lookahead_m: 25.0,
+            late_birth_m: 15.0,
+            late_birth_min_age_s: 3.0,
         }
     }
 }
@@ -148,6 +158,8 @@ impl ArcConfig {
             ("followed_exempt_m", self.followed_exempt_m),
             ("followed_wake_m", self.followed_wake_m),
             ("followed_lookahead_m", self.followed_lookahead_m),
+            ("late_birth_m", self.late_birth_m),
+            ("late_birth_min_age_s", self.late_birth_min_age_s),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));

@@ -14,6 +14,7 @@ use messages::{
     InsState, MapCell, MissionReply, SequencerStatus, WorldMapHeader,
 };
 use serde::Deserialize;
+use std::collections::HashMap;
 
 /// Which input starts a cycle (the binary's wait loop reads this).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
@@ -99,6 +100,8 @@ pub struct Sequencer {
     contacts: Box<ContactList>,
     /// Moving contacts of this cycle, predicted to now (kept to reuse the allocation).
     moving: Vec<MovingObstacle>,
+    /// Per contact id: whether its track was born within `arcs.late_birth_m` of the vessel.
+    late_births: HashMap<u32, bool>,
     watchdog: Watchdog,
     runner: Runner,
     controller: Controller,
@@ -118,6 +121,7 @@ impl Sequencer {
             ins: None,
             contacts: Box::default(),
             moving: Vec::new(),
+            late_births: HashMap::new(),
             watchdog: Watchdog::new(&cfg.watchdog),
             runner: Runner::new(cfg.control.max_speed_mps),
             controller: Controller::default(),
@@ -155,6 +159,22 @@ impl Sequencer {
     }
 
     pub fn on_contacts(&mut self, list: &ContactList) {
+        let own = self
+            .ins
+            .map(|ins| [ins.pose.position[0], ins.pose.position[1]]);
+        let within = self.cfg.arcs.late_birth_m;
+        let contacts = list.as_slice();
+        self.late_births
+            .retain(|id, _| contacts.iter().any(|c| c.id == *id));
+        for c in contacts {
+            // A track met first when already older was born before this sequencer started.
+            self.late_births.entry(c.id).or_insert_with(|| {
+                c.age_s as f64 <= JUST_BORN_S
+                    && own.is_some_and(|o| {
+                        (c.position[0] - o[0]).hypot(c.position[1] - o[1]) < within
+                    })
+            });
+        }
         *self.contacts = *list;
         self.watchdog.seen(watchdog::CONTACTS, list.hdr.stamp_ns);
     }
@@ -251,7 +271,6 @@ impl Sequencer {
             .map_or(0.0, |t| now.saturating_sub(t) as f64 * 1e-9)
             .min(1.0);
         self.last_cycle_ns = Some(now);
-        let cfg = &self.cfg.control;
         let mut status = SequencerStatus {
             hdr: Header::new(0, now, source),
             paused: self.runner.paused() as u8,
@@ -264,7 +283,10 @@ impl Sequencer {
         let (mode, (rudder, throttle)) = match self.ins.filter(|_| stale == 0) {
             None => {
                 // The mission's state machine is frozen while inputs are stale.
-                (command_mode::SAFE_STOP, self.controller.stop(cfg, dt))
+                (
+                    command_mode::SAFE_STOP,
+                    self.controller.stop(&self.cfg.control, dt),
+                )
             }
             Some(ins) => {
                 let own = OwnState {
@@ -303,15 +325,7 @@ impl Sequencer {
                     own.yaw,
                     exempt,
                 );
-                blocked.merge(blocked_by_contacts(
-                    &self.arcs,
-                    &self.contacts,
-                    self.runner.followed_contact(),
-                    target,
-                    &mut self.moving,
-                    &own,
-                    now,
-                ));
+                blocked.merge(self.blocked_by_contacts(target, &own, now));
                 // Close behind the target, arcs are judged only as far as the follow look-ahead
                 // (see `ArcConfig::followed_lookahead_m`); the status reports what was judged.
                 if target.is_some_and(|t| {
@@ -321,6 +335,7 @@ impl Sequencer {
                     blocked.mask = blocked.follow;
                 }
                 status.blocked_arcs = [blocked.mask as u64, (blocked.mask >> 64) as u64];
+                let cfg = &self.cfg.control;
                 let guidance = match directive {
                     Directive::Idle | Directive::Hold => None,
                     Directive::Goto {
@@ -369,6 +384,76 @@ impl Sequencer {
             _pad: [0; 7],
         };
         (command, status)
+    }
+
+    /// Arcs that would meet a contact: a moving one where it will be (the map holds where it is
+    /// now), a slow, young or marker one where it is (the tracker may hold a buoy before the map
+    /// confirms it at the arc threshold). Confirmed tracks only, not false alarms, not the contact
+    /// being followed, nor one within `followed_exempt_m` of the followed target or on its wake.
+    /// Not extended objects nor any contact larger than `contact_max_extent_m`: shore and bank
+    /// pieces do not move and the map holds them, and the classifier's extended class also takes
+    /// the 10-20 m patches of sun glint that live a few seconds, drift at 2-6 m/s and never reach
+    /// the map's arc threshold (follow_boat's log: as contacts they swerved the boat off the
+    /// target's track). Not a young track born close in (`late_birth_m`): a ghost until it lasts.
+    fn blocked_by_contacts(
+        &mut self,
+        target: Option<FollowedTarget>,
+        own: &OwnState,
+        now: u64,
+    ) -> Blocked {
+        let arcs = &self.arcs;
+        let contacts = &self.contacts;
+        let late_births = &self.late_births;
+        let followed = self.runner.followed_contact();
+        let moving = &mut self.moving;
+        let cfg = arcs.config();
+        let age = now.saturating_sub(contacts.hdr.stamp_ns) as f64 * 1e-9;
+        moving.clear();
+        moving.extend(
+            contacts
+                .as_slice()
+                .iter()
+                .filter(|c| {
+                    c.confirmed == 1
+                        && c.class != contact_class::FALSE_ALARM
+                        && Some(c.id) != followed
+                        && !target.is_some_and(|t| {
+                            (c.position[0] - t.position[0]).hypot(c.position[1] - t.position[1])
+                                < cfg.followed_exempt_m
+                                || t.is_wake(
+                                    c.position,
+                                    c.velocity,
+                                    c.class != contact_class::CHANNEL_MARKER,
+                                    cfg.followed_wake_m,
+                                    0.5 * cfg.followed_exempt_m,
+                                )
+                        })
+                        && c.class != contact_class::EXTENDED
+                        && !(late_births.get(&c.id) == Some(&true)
+                            && (c.age_s as f64) < cfg.late_birth_min_age_s)
+                        && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
+                })
+                .map(|c| {
+                    let moving = c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
+                        && c.age_s as f64 >= cfg.moving_min_age_s
+                        && c.class != contact_class::CHANNEL_MARKER;
+                    let velocity = if moving { c.velocity } else { [0.0; 2] };
+                    // Two sigma of position, capped: a loose new track must not block everything.
+                    let sigma = (c.covariance[0].max(c.covariance[5]) as f64)
+                        .max(0.0)
+                        .sqrt();
+                    MovingObstacle {
+                        position: [
+                            c.position[0] + velocity[0] * age,
+                            c.position[1] + velocity[1] * age,
+                        ],
+                        velocity,
+                        radius_m: 0.5 * (c.extent[0] as f64).hypot(c.extent[1] as f64)
+                            + (2.0 * sigma).min(5.0),
+                    }
+                }),
+        );
+        arcs.blocked_by_moving(moving, own.position, own.yaw, own.speed_mps)
     }
 
     /// Avoidance on top of the behaviour's guidance: the free arc closest to the desired course.
@@ -452,73 +537,11 @@ impl Sequencer {
     }
 }
 
+/// A track this young (s) when the sequencer first meets it was born in this frame or the last.
+const JUST_BORN_S: f64 = 0.5;
+
 /// Braking astern stops below this speed (m/s): astern power on a stopped boat would back it up.
 const BRAKE_UNTIL_MPS: f64 = 0.3;
 /// On a free arc, the boat brakes astern only when this much (m/s) faster than asked: a smaller
 /// speed error is left to the drag, so the throttle does not swing through astern.
 const BRAKE_ABOVE_MPS: f64 = 1.0;
-
-/// Arcs that would meet a contact: a moving one where it will be (the map holds where it is now), a
-/// slow, young or marker one where it is (the tracker may hold a buoy before the map confirms it at
-/// the arc threshold). Confirmed tracks only, not false alarms, not the contact being followed, nor
-/// one within `followed_exempt_m` of the followed target or on its wake. Not extended objects nor
-/// any contact larger than `contact_max_extent_m`: shore and bank pieces do not move and the map
-/// holds them, and the classifier's extended class also takes the 10-20 m patches of sun glint that
-/// live a few seconds, drift at 2-6 m/s and never reach the map's arc threshold (follow_boat's log:
-/// as contacts they swerved the boat off the target's track).
-fn blocked_by_contacts(
-    arcs: &ArcSet,
-    contacts: &ContactList,
-    followed: Option<u32>,
-    target: Option<FollowedTarget>,
-    moving: &mut Vec<MovingObstacle>,
-    own: &OwnState,
-    now: u64,
-) -> Blocked {
-    let cfg = arcs.config();
-    let age = now.saturating_sub(contacts.hdr.stamp_ns) as f64 * 1e-9;
-    moving.clear();
-    moving.extend(
-        contacts
-            .as_slice()
-            .iter()
-            .filter(|c| {
-                c.confirmed == 1
-                    && c.class != contact_class::FALSE_ALARM
-                    && Some(c.id) != followed
-                    && !target.is_some_and(|t| {
-                        (c.position[0] - t.position[0]).hypot(c.position[1] - t.position[1])
-                            < cfg.followed_exempt_m
-                            || t.is_wake(
-                                c.position,
-                                c.velocity,
-                                c.class != contact_class::CHANNEL_MARKER,
-                                cfg.followed_wake_m,
-                                0.5 * cfg.followed_exempt_m,
-                            )
-                    })
-                    && c.class != contact_class::EXTENDED
-                    && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
-            })
-            .map(|c| {
-                let moving = c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
-                    && c.age_s as f64 >= cfg.moving_min_age_s
-                    && c.class != contact_class::CHANNEL_MARKER;
-                let velocity = if moving { c.velocity } else { [0.0; 2] };
-                // Two sigma of position, capped: a loose new track must not block everything.
-                let sigma = (c.covariance[0].max(c.covariance[5]) as f64)
-                    .max(0.0)
-                    .sqrt();
-                MovingObstacle {
-                    position: [
-                        c.position[0] + velocity[0] * age,
-                        c.position[1] + velocity[1] * age,
-                    ],
-                    velocity,
-                    radius_m: 0.5 * (c.extent[0] as f64).hypot(c.extent[1] as f64)
-                        + (2.0 * sigma).min(5.0),
-                }
-            }),
-    );
-    arcs.blocked_by_moving(moving, own.position, own.yaw, own.speed_mps)
-}

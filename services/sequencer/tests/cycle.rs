@@ -436,3 +436,32 @@ fn close_behind_a_followed_boat_only_the_water_up_to_the_look_ahead_is_judged() 
     seq.on_contacts(&contacts);
     assert!(seq.cycle("test").1.arc_blocked(straight));
 }
+
+#[test]
+fn a_track_born_close_in_blocks_no_arc_until_it_has_lasted() {
+    // A 5.5 x 5 m "boat" born 13 m off the starboard bow (a ghost of glint or of a wake), seen by
+    // the sequencer first at 0.2 s, then confirmed; the same blob as a track born 40 m out.
+    let at = |position: [f64; 2], age_s: f32| {
+        let mut list = boat_contacts(100 * MS, position, [0.0, 0.0]);
+        list.contacts[0].extent = [5.5, 5.0, 3.0];
+        list.contacts[0].age_s = age_s;
+        list
+    };
+    let blocked_after = |first: ContactList, now: ContactList| {
+        let mut seq = started(EAST);
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&first);
+        seq.cycle("test");
+        seq.on_contacts(&now);
+        seq.cycle("test").1
+    };
+    let ghost = blocked_after(at([10.0, -8.0], 0.2), at([10.0, -8.0], 0.6));
+    assert_eq!(ghost.blocked_arcs, [0, 0]);
+    assert_eq!(ghost.mode, command_mode::NAVIGATING);
+    // Once it has lasted `late_birth_min_age_s` it blocks like any contact ...
+    let lasting = blocked_after(at([10.0, -8.0], 0.2), at([10.0, -8.0], 3.2));
+    assert_ne!(lasting.blocked_arcs, [0, 0]);
+    // ... and a track born far out blocks from the start.
+    let approached = blocked_after(at([40.0, -8.0], 0.2), at([10.0, -8.0], 0.6));
+    assert_eq!(approached.blocked_arcs, lasting.blocked_arcs);
+}
