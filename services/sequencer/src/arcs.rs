@@ -83,7 +83,7 @@ pub struct ArcConfig {
     /// A track first seen within this range (m) blocks no arc until it is `late_birth_min_age_s`
     /// old. Perception sees boats and buoys from 65 m, so a real one is tracked long before it is
     /// this close; a track born this close is a stereo ghost of glint or of the target's wake. In
-    /// follow_boat's log a 5 m "boat" born 16 m off the starboard bow lived 2.6 s and, inflated by
+    /// follow_boat's log a 5 m "boat" born 17 m off the starboard bow lived 2.6 s and, inflated by
     /// its birth covariance, held the own boat inside its disc: every arc blocked, the boat braked
     /// and turned hard away and lost its target for 45 s. The map still blocks what is real.
     pub late_birth_m: f64,
@@ -112,7 +112,7 @@ impl Default for ArcConfig {
             followed_exempt_m: 8.0,
             followed_wake_m: 40.0,
             followed_lookahead_m: 25.0,
-            late_birth_m: 15.0,
+            late_birth_m: 20.0,
             late_birth_min_age_s: 3.0,
         }
     }
