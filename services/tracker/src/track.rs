@@ -468,17 +468,24 @@ impl Tracker {
     /// within a second: the track coasted on along the old course and died, the boat mapped too
     /// weakly to start a new one for seconds, and the follower lost it at every turn. The update
     /// is the usual one: opening the covariance for the turn as well made the track's speed jump
-    /// by 1-1.5 m/s and the follower close in on the target.
+    /// by 1-1.5 m/s and the follower close in on the target. The oldest track chooses first, not
+    /// the first in the list: a few seconds old track of drifting glint, its window grown while it
+    /// coasted, must not take a turning boat's detection from the boat's own long-held track.
     fn assign_manoeuvring(&self, assigned: &mut [Option<usize>], stamp: u64) {
         let mut taken = vec![false; self.detections.len()];
         for di in assigned.iter().flatten() {
             taken[*di] = true;
         }
-        for (ti, t) in self.tracks.iter().enumerate() {
-            // Only after a missed map: one map's miss of the gate is noise, not a turn.
-            if assigned[ti].is_some() || !guided(t) || t.misses == 0 {
-                continue;
-            }
+        // Only after a missed map: one map's miss of the gate is noise, not a turn.
+        let mut waiting: Vec<usize> = (0..self.tracks.len())
+            .filter(|&ti| {
+                let t = &self.tracks[ti];
+                assigned[ti].is_none() && guided(t) && t.misses > 0
+            })
+            .collect();
+        waiting.sort_by_key(|&ti| self.tracks[ti].born_ns);
+        for ti in waiting {
+            let t = &self.tracks[ti];
             let radius = guide_radius(t, self.cfg.guide_margin_m, stamp);
             let nearest = self
                 .detections
@@ -643,4 +650,49 @@ pub fn measurement_noise(cfg: &TrackerConfig, own: Vector2<f64>, pos: [f64; 2]) 
     let sr = cfg.range_sigma[0] + cfg.range_sigma[1] * range;
     let sc = cfg.cross_sigma[0] + cfg.cross_sigma[1] * range;
     u * u.transpose() * (sr * sr) + v * v.transpose() * (sc * sc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// A confirmed track at `position` moving at `velocity`, born at `born_ns`, that missed the
+    /// last map (its last detection 0.6 s before `NOW`).
+    fn coasting(id: u32, born_ns: u64, position: [f64; 2], velocity: [f64; 2]) -> Track {
+        Track {
+            id,
+            x: Vector4::new(position[0], position[1], velocity[0], velocity[1]),
+            p: Matrix4::identity(),
+            born_ns,
+            last_hit_ns: NOW - 600_000_000,
+            history: 0b1110,
+            misses: 1,
+            confirmed: true,
+            class_score: [0.0; 5],
+            extent: [3.0, 6.0, 1.5],
+        }
+    }
+
+    const NOW: u64 = 200_000_000_000;
+
+    #[test]
+    fn in_a_manoeuvre_the_oldest_track_takes_the_detection_in_both_windows() {
+        let model = Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json"))
+            .unwrap();
+        let mut tracker = Tracker::new(TrackerConfig::default(), model).unwrap();
+        // A 7 s old track of drifting glint, listed first, and the turning boat's 160 s old track;
+        // the boat's detection lies in both windows, a little nearer the glint's prediction.
+        tracker.tracks = vec![
+            coasting(943, NOW - 7_000_000_000, [6.0, 24.0], [-4.8, 5.0]),
+            coasting(333, NOW - 160_000_000_000, [0.0, 17.0], [-1.4, 6.3]),
+        ];
+        tracker.detections = vec![Detection {
+            position: [3.2, 21.2],
+            ..Default::default()
+        }];
+        let mut assigned = vec![None; 2];
+        tracker.assign_manoeuvring(&mut assigned, NOW);
+        assert_eq!(assigned, vec![None, Some(0)]);
+    }
 }
