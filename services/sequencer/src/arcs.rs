@@ -88,6 +88,12 @@ pub struct ArcConfig {
     /// and turned hard away and lost its target for 45 s. The map still blocks what is real.
     pub late_birth_m: f64,
     pub late_birth_min_age_s: f64,
+    /// A contact the classifier calls a channel marker that moves faster than this (m/s) once it is
+    /// `moving_min_age_s` old is drifting sun glint, not a moored marker, and is left to the map
+    /// like extended contacts. In follow_boat's log such a "marker", 4 x 6.5 m and drifting at
+    /// 4.5 m/s, blocked every arc 8 m off the bow (a marker is judged where it is, not moved): the
+    /// boat braked and turned away and fell 19 m behind its target.
+    pub marker_max_speed_mps: f64,
 }
 
 impl Default for ArcConfig {
@@ -114,6 +120,7 @@ impl Default for ArcConfig {
             followed_lookahead_m: 25.0,
             late_birth_m: 20.0,
             late_birth_min_age_s: 3.0,
+            marker_max_speed_mps: 2.0,
         }
     }
 }
@@ -160,6 +167,7 @@ impl ArcConfig {
             ("followed_lookahead_m", self.followed_lookahead_m),
             ("late_birth_m", self.late_birth_m),
             ("late_birth_min_age_s", self.late_birth_min_age_s),
+            ("marker_max_speed_mps", self.marker_max_speed_mps),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));

@@ -395,6 +395,7 @@ impl Sequencer {
     /// the 10-20 m patches of sun glint that live a few seconds, drift at 2-6 m/s and never reach
     /// the map's arc threshold (follow_boat's log: as contacts they swerved the boat off the
     /// target's track). Not a young track born close in (`late_birth_m`): a ghost until it lasts.
+    /// Not a "channel marker" that drifts (`marker_max_speed_mps`): glint again.
     fn blocked_by_contacts(
         &mut self,
         target: Option<FollowedTarget>,
@@ -429,6 +430,9 @@ impl Sequencer {
                                 )
                         })
                         && c.class != contact_class::EXTENDED
+                        && !(c.class == contact_class::CHANNEL_MARKER
+                            && c.velocity[0].hypot(c.velocity[1]) > cfg.marker_max_speed_mps
+                            && c.age_s as f64 >= cfg.moving_min_age_s)
                         && !(late_births.get(&c.id) == Some(&true)
                             && (c.age_s as f64) < cfg.late_birth_min_age_s)
                         && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m

@@ -365,6 +365,21 @@ fn a_buoy_the_tracker_holds_blocks_arcs_before_the_map_confirms_it() {
     assert!(!status.arc_blocked(status.chosen_arc as usize));
     assert_eq!(cmd.mode, command_mode::NAVIGATING);
 
+    // A buoy's track may wobble at 1.5 m/s; a "marker" drifting at 4.5 m/s is sun glint, left to
+    // the map.
+    for (speed, blocks) in [(1.5, true), (4.5, false)] {
+        let mut moved = buoy;
+        moved.contacts[0].velocity = [0.0, -speed];
+        let mut seq = started(EAST);
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&moved);
+        assert_eq!(
+            seq.cycle("test").1.arc_blocked(straight),
+            blocks,
+            "marker at {speed} m/s"
+        );
+    }
+
     // The tracker's false alarms steer nothing.
     let mut false_alarm = buoy;
     false_alarm.contacts[0].class = contact_class::FALSE_ALARM;

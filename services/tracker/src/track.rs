@@ -471,6 +471,9 @@ impl Tracker {
     /// by 1-1.5 m/s and the follower close in on the target. The oldest track chooses first, not
     /// the first in the list: a few seconds old track of drifting glint, its window grown while it
     /// coasted, must not take a turning boat's detection from the boat's own long-held track.
+    /// Nor does a track the classifier holds for a false alarm take part: noise does not turn,
+    /// and glint drifting across a turning boat took the bow's detection while the boat's own
+    /// track, holding its stern, still waited for the stern.
     fn assign_manoeuvring(&self, assigned: &mut [Option<usize>], stamp: u64) {
         let mut taken = vec![false; self.detections.len()];
         for di in assigned.iter().flatten() {
@@ -480,7 +483,10 @@ impl Tracker {
         let mut waiting: Vec<usize> = (0..self.tracks.len())
             .filter(|&ti| {
                 let t = &self.tracks[ti];
-                assigned[ti].is_none() && guided(t) && t.misses > 0
+                assigned[ti].is_none()
+                    && guided(t)
+                    && t.misses > 0
+                    && t.class().0 != contact_class::FALSE_ALARM
             })
             .collect();
         waiting.sort_by_key(|&ti| self.tracks[ti].born_ns);
@@ -694,5 +700,31 @@ mod tests {
         let mut assigned = vec![None; 2];
         tracker.assign_manoeuvring(&mut assigned, NOW);
         assert_eq!(assigned, vec![None, Some(0)]);
+    }
+
+    #[test]
+    fn a_track_held_for_a_false_alarm_takes_no_detection_in_a_manoeuvre() {
+        let model = Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json"))
+            .unwrap();
+        let mut tracker = Tracker::new(TrackerConfig::default(), model).unwrap();
+        let mut glint = coasting(943, NOW - 7_000_000_000, [6.0, 24.0], [-4.8, 5.0]);
+        glint.class_score[contact_class::FALSE_ALARM as usize] = 3.0;
+        let mut boat = glint.clone();
+        boat.id = 944;
+        boat.class_score = [0.0; 5];
+        boat.class_score[contact_class::BOAT as usize] = 3.0;
+        tracker.tracks = vec![glint, boat];
+        tracker.detections = vec![Detection {
+            position: [3.2, 21.2],
+            ..Default::default()
+        }];
+        let mut assigned = vec![None; 2];
+        tracker.assign_manoeuvring(&mut assigned, NOW);
+        assert_eq!(assigned, vec![None, Some(0)]);
+        // Alone, the false alarm still takes nothing.
+        tracker.tracks.truncate(1);
+        let mut assigned = vec![None; 1];
+        tracker.assign_manoeuvring(&mut assigned, NOW);
+        assert_eq!(assigned, vec![None]);
     }
 }
