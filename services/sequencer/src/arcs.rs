@@ -94,6 +94,14 @@ pub struct ArcConfig {
     /// 4.5 m/s, blocked every arc 8 m off the bow (a marker is judged where it is, not moved): the
     /// boat braked and turned away and fell 19 m behind its target.
     pub marker_max_speed_mps: f64,
+    /// While following, map hazards up to this far (m) astern of the target's centre and within
+    /// `followed_exempt_m / 2` of its track line are its wake and the cells its hull left: the
+    /// map's 3-observation average and hazard decay hold them about a second. In follow_boat's
+    /// log such cells 9 m astern of a 7 m/s target's centre, outside the 8 m disc, blocked every
+    /// arc for 2.4 s: the boat braked, turned away and fell 14 m behind. The water the target
+    /// has just crossed holds nothing solid; the lane is kept short, as a turning target's course
+    /// line soon leaves the water it went over.
+    pub followed_wake_map_m: f64,
 }
 
 impl Default for ArcConfig {
@@ -121,6 +129,7 @@ impl Default for ArcConfig {
             late_birth_m: 20.0,
             late_birth_min_age_s: 3.0,
             marker_max_speed_mps: 2.0,
+            followed_wake_map_m: 12.0,
         }
     }
 }
@@ -168,6 +177,7 @@ impl ArcConfig {
             ("late_birth_m", self.late_birth_m),
             ("late_birth_min_age_s", self.late_birth_min_age_s),
             ("marker_max_speed_mps", self.marker_max_speed_mps),
+            ("followed_wake_map_m", self.followed_wake_map_m),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));
@@ -243,13 +253,33 @@ impl Blocked {
     }
 }
 
-/// A disc of the world (ENU centre, radius in m) whose hazards block no arc: the hull of the boat
-/// being followed, which the follow behaviour keeps its distance from by itself. Without it every
-/// arc longer than the follow distance runs into the target, and the boat weaves beside its wake.
+/// A part of the world whose hazards block no arc: a disc (ENU centre, radius in m) over the hull
+/// of the boat being followed, which the follow behaviour keeps its distance from by itself, and a
+/// lane astern of it along its course, the cells its hull and wash left that the map still holds.
+/// Without the disc every arc longer than the follow distance runs into the target, and the boat
+/// weaves beside its wake.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Exempt {
     pub centre: [f64; 2],
     pub radius_m: f64,
+    /// Course of the target (rad, ENU): the lane runs astern from `centre` against it ...
+    pub course: f64,
+    /// ... this far (m) ...
+    pub lane_length_m: f64,
+    /// ... this far (m) either side of the track line.
+    pub lane_half_width_m: f64,
+}
+
+impl Exempt {
+    /// Whether a hazard at `offset` (m, ENU) from the disc's centre lies in the disc or the lane.
+    fn covers(&self, offset: [f64; 2]) -> bool {
+        let [dx, dy] = offset;
+        let (s, c) = self.course.sin_cos();
+        let astern = -(dx * c + dy * s);
+        let across = (-dx * s + dy * c).abs();
+        dx * dx + dy * dy < self.radius_m * self.radius_m
+            || ((0.0..=self.lane_length_m).contains(&astern) && across <= self.lane_half_width_m)
+    }
 }
 
 /// The target being followed, as contacts are checked against it ([`FollowedTarget::is_wake`]).
@@ -524,19 +554,12 @@ impl ArcSet {
     ) -> Blocked {
         let (s, c) = yaw.sin_cos();
         let (ox, oy) = (origin[0] - vessel[0], origin[1] - vessel[1]);
-        // The exempt disc relative to the vessel, like the hazards below; an empty disc far away
-        // when there is none keeps the loop branch-free.
-        let (ex, ey, er2) = exempt.map_or((f64::MAX, f64::MAX, 0.0), |e| {
-            (
-                e.centre[0] - vessel[0],
-                e.centre[1] - vessel[1],
-                e.radius_m * e.radius_m,
-            )
-        });
+        // The exempt centre relative to the vessel, like the hazards below.
+        let exempt = exempt.map(|e| (e, [e.centre[0] - vessel[0], e.centre[1] - vessel[1]]));
         let mut out = Blocked::default();
         for h in hazards {
             let (dx, dy) = (h[0] as f64 + ox, h[1] as f64 + oy);
-            if (dx - ex).powi(2) + (dy - ey).powi(2) < er2 {
+            if exempt.is_some_and(|(e, [ex, ey])| e.covers([dx - ex, dy - ey])) {
                 continue;
             }
             // World offset -> body frame (rotate by -yaw).
@@ -852,6 +875,9 @@ mod tests {
         let exempt = Some(Exempt {
             centre: [0.0, 24.0],
             radius_m: 8.0,
+            course: yaw,
+            lane_length_m: 0.0,
+            lane_half_width_m: 0.0,
         });
         let b = set.blocked_except(&hazards, g.center, [0.0, 0.0], yaw, exempt);
         for s in straight_arcs(&set) {
@@ -868,6 +894,43 @@ mod tests {
         }
         assert_ne!(b.mask, 0, "the buoy still blocks the arcs through it");
         assert_eq!((b.port, b.starboard), (1, 0));
+    }
+
+    #[test]
+    fn the_cells_a_followed_boat_left_astern_block_no_arc_beside_its_lane_they_do() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let g = grid(200, 0.5);
+        let yaw = PI / 2.0;
+        // The target's centre 21 m ahead (the vessel heads north, so does the target); cells its
+        // hull left 9-10 m astern of it, 12 m ahead of the vessel, outside the 8 m disc.
+        let exempt = Exempt {
+            centre: [0.0, 21.0],
+            radius_m: 8.0,
+            course: yaw,
+            lane_length_m: 12.0,
+            lane_half_width_m: 4.0,
+        };
+        let blocked = |cells: &[(f64, f64)], exempt: Option<Exempt>| {
+            let mut map = free_map(200);
+            for &(e, n) in cells {
+                put(&mut map, &g, e, n);
+            }
+            let mut hazards = Vec::new();
+            set.collect_hazards(&g, &map, &mut hazards);
+            set.blocked_except(&hazards, g.center, [0.0, 0.0], yaw, exempt)
+                .mask
+        };
+        let left = [(0.5, 11.0), (-0.5, 12.0)];
+        assert_ne!(blocked(&left, None), 0, "the cells block without the lane");
+        let no_lane = Exempt {
+            lane_length_m: 0.0,
+            ..exempt
+        };
+        assert_ne!(blocked(&left, Some(no_lane)), 0, "outside the disc alone");
+        assert_eq!(blocked(&left, Some(exempt)), 0, "in the lane");
+        // Beside the lane, or astern of its end, a hazard still blocks.
+        assert_ne!(blocked(&[(5.0, 12.0)], Some(exempt)), 0, "beside the lane");
+        assert_ne!(blocked(&[(0.0, 8.0)], Some(exempt)), 0, "astern of the lane");
     }
 
     #[test]

@@ -317,6 +317,9 @@ impl Sequencer {
                 let exempt = target.map(|t| Exempt {
                     centre: t.position,
                     radius_m: self.arcs.config().followed_exempt_m,
+                    course: t.course,
+                    lane_length_m: self.arcs.config().followed_wake_map_m,
+                    lane_half_width_m: 0.5 * self.arcs.config().followed_exempt_m,
                 });
                 let mut blocked = self.arcs.blocked_except(
                     &self.hazards,

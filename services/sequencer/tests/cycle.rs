@@ -445,11 +445,17 @@ fn close_behind_a_followed_boat_only_the_water_up_to_the_look_ahead_is_judged() 
     feed(&mut seq, 100 * MS, &far);
     seq.on_contacts(&contacts);
     assert!(seq.cycle("test").1.arc_blocked(straight));
-    // ... and so does a hazard within the look-ahead behind the target.
+    // ... and so does a hazard within the look-ahead behind the target, astern of the lane of
+    // its wake (`arcs.followed_wake_map_m`, 12 m) ...
     let mut seq = started(FOLLOW);
-    feed(&mut seq, 100 * MS, &[(12.0, 2.0)]);
+    feed(&mut seq, 100 * MS, &[(6.0, 1.0)]);
     seq.on_contacts(&contacts);
     assert!(seq.cycle("test").1.arc_blocked(straight));
+    // ... but not the cells the target left in its lane.
+    let mut seq = started(FOLLOW);
+    feed(&mut seq, 100 * MS, &[(11.0, 1.0), (12.0, -1.0)]);
+    seq.on_contacts(&contacts);
+    assert_eq!(seq.cycle("test").1.blocked_arcs, [0, 0]);
 }
 
 #[test]
