@@ -102,6 +102,12 @@ pub struct ArcConfig {
     /// has just crossed holds nothing solid; the lane is kept short, as a turning target's course
     /// line soon leaves the water it went over.
     pub followed_wake_map_m: f64,
+    /// A track younger than this (s) that is coasting (not detected in the latest map) blocks no
+    /// arc: a real boat or buoy is seen from 65 m and held frame after frame, while glint tracks
+    /// lose their detection within seconds of birth. In follow_boat's log a 3-5 s old "boat",
+    /// coasting at 3.8 m/s 20-30 m off the bow, blocked every arc: the boat braked, turned away and
+    /// lost its target. The map still blocks what is real.
+    pub young_coasting_max_age_s: f64,
 }
 
 impl Default for ArcConfig {
@@ -130,6 +136,7 @@ impl Default for ArcConfig {
             late_birth_min_age_s: 3.0,
             marker_max_speed_mps: 2.0,
             followed_wake_map_m: 12.0,
+            young_coasting_max_age_s: 6.0,
         }
     }
 }
@@ -178,6 +185,7 @@ impl ArcConfig {
             ("late_birth_min_age_s", self.late_birth_min_age_s),
             ("marker_max_speed_mps", self.marker_max_speed_mps),
             ("followed_wake_map_m", self.followed_wake_map_m),
+            ("young_coasting_max_age_s", self.young_coasting_max_age_s),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ArcError::NonNegative(name, v));
@@ -930,7 +938,11 @@ mod tests {
         assert_eq!(blocked(&left, Some(exempt)), 0, "in the lane");
         // Beside the lane, or astern of its end, a hazard still blocks.
         assert_ne!(blocked(&[(5.0, 12.0)], Some(exempt)), 0, "beside the lane");
-        assert_ne!(blocked(&[(0.0, 8.0)], Some(exempt)), 0, "astern of the lane");
+        assert_ne!(
+            blocked(&[(0.0, 8.0)], Some(exempt)),
+            0,
+            "astern of the lane"
+        );
     }
 
     #[test]

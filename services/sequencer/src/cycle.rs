@@ -398,7 +398,8 @@ impl Sequencer {
     /// the 10-20 m patches of sun glint that live a few seconds, drift at 2-6 m/s and never reach
     /// the map's arc threshold (follow_boat's log: as contacts they swerved the boat off the
     /// target's track). Not a young track born close in (`late_birth_m`): a ghost until it lasts.
-    /// Not a "channel marker" that drifts (`marker_max_speed_mps`): glint again.
+    /// Not a "channel marker" that drifts (`marker_max_speed_mps`): glint again. Not a young
+    /// track that lost its detection (`young_coasting_max_age_s`): glint once more.
     fn blocked_by_contacts(
         &mut self,
         target: Option<FollowedTarget>,
@@ -438,6 +439,7 @@ impl Sequencer {
                             && c.age_s as f64 >= cfg.moving_min_age_s)
                         && !(late_births.get(&c.id) == Some(&true)
                             && (c.age_s as f64) < cfg.late_birth_min_age_s)
+                        && !(c.coasting == 1 && (c.age_s as f64) < cfg.young_coasting_max_age_s)
                         && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
                 })
                 .map(|c| {
@@ -496,7 +498,8 @@ impl Sequencer {
             // Well above the speed asked for, the speed loop may brake astern: coasting down
             // from 9 to 7 m/s takes seconds, and a follower that closed to 12 m behind its
             // target lost it (the target's stern came inside perception's 8 m minimum range).
-            let floor = if own.speed_mps > g.speed_mps + BRAKE_ABOVE_MPS {
+            // Following, only close to the target (`ControlConfig::follow_brake_range_m`).
+            let floor = if g.may_brake && own.speed_mps > g.speed_mps + BRAKE_ABOVE_MPS {
                 cfg.brake_throttle_pct
             } else {
                 cfg.min_throttle_pct

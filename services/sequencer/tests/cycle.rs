@@ -486,3 +486,51 @@ fn a_track_born_close_in_blocks_no_arc_until_it_has_lasted() {
     let approached = blocked_after(at([40.0, -8.0], 0.2), at([10.0, -8.0], 0.6));
     assert_eq!(approached.blocked_arcs, lasting.blocked_arcs);
 }
+
+#[test]
+fn a_young_track_that_lost_its_detection_blocks_no_arc_an_old_one_does() {
+    // A 2 x 2 m "boat" 20 m dead ahead, coasting (not detected in the latest map) at 4 s old:
+    // glint that lost its detection. The same track detected, or coasting at 8 s old (a real boat
+    // hidden for a frame), blocks the straight arc.
+    let blocked = |coasting: u8, age_s: f32| {
+        let mut list = boat_contacts(100 * MS, [20.0, 0.0], [0.0, 0.5]);
+        list.contacts[0].extent = [2.0, 2.0, 1.0];
+        list.contacts[0].coasting = coasting;
+        list.contacts[0].age_s = age_s;
+        let mut seq = started(EAST);
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&list);
+        let status = seq.cycle("test").1;
+        status.arc_blocked(seq.arcs().nearest(0.0))
+    };
+    assert!(!blocked(1, 4.0));
+    assert!(blocked(0, 4.0));
+    assert!(blocked(1, 8.0));
+}
+
+#[test]
+fn following_the_boat_brakes_astern_only_close_to_the_target() {
+    // Following boat #3 heading east at 5 m/s while doing 8 m/s. 18 m behind it (a turning
+    // target's lagging track reads it this close) the boat sheds speed by drag; 12 m behind it
+    // brakes astern.
+    const FOLLOW: &str = "[[step]]\ntype = \"follow\"\ncontact_id = 3\nastern_m = 20.0\n";
+    let throttle_at = |range: f64| {
+        let mut seq = started(FOLLOW);
+        let mut throttle = f32::NAN;
+        for k in 1..=10 {
+            let t = k * 100 * MS;
+            seq.on_ins(&ins(t, 0.0, 8.0)).unwrap();
+            let (h, c) = map(t, &[]);
+            seq.on_map(&h, &c).unwrap();
+            let mut target = boat_contacts(t, [range, 0.0], [5.0, 0.0]);
+            target.contacts[0].id = 3;
+            seq.on_contacts(&target);
+            throttle = seq.cycle("test").0.throttle_pct;
+        }
+        throttle
+    };
+    let far = throttle_at(18.0);
+    assert!((0.0..10.0).contains(&far), "{far}");
+    let close = throttle_at(12.0);
+    assert!(close < -10.0, "{close}");
+}
