@@ -85,8 +85,9 @@ struct Cell {
     hazards: [u8; MAX_COST_HISTORY],
     cost_len: u8,
     cost_head: u8,
-    /// Local maps that observed the cell (saturating).
-    seen: u8,
+    /// Observations of the cell in the local map of update `observed_update` (see `write`).
+    observed: u8,
+    observed_update: u32,
     max_height_cm: i16,
     elevation_cm: i16,
 }
@@ -99,7 +100,8 @@ impl Default for Cell {
             hazards: [0; MAX_COST_HISTORY],
             cost_len: 0,
             cost_head: 0,
-            seen: 0,
+            observed: 0,
+            observed_update: 0,
             max_height_cm: 0,
             elevation_cm: 0,
         }
@@ -476,7 +478,10 @@ impl WorldMapper {
                     c.max_height_cm = l.max_height_cm;
                     c.elevation_cm = l.elevation_cm;
                 }
-                c.seen = c.seen.saturating_add(1);
+                // At least one: a cost without range points (the local map's memory) is an
+                // observation too.
+                c.observed = l.observed.max(1);
+                c.observed_update = self.update;
                 let wcell = &mut self.water[i];
                 if l.water > 0 {
                     wcell.hits = wcell.hits.saturating_add(1);
@@ -655,7 +660,14 @@ impl WorldMapper {
                 hazard: (c.hazard * 255.0).round().clamp(0.0, 255.0) as u8,
                 cost,
                 water,
-                observed: c.seen,
+                // This cycle's observations, as in a local map: the sensors' coverage now, which
+                // the tracker needs to tell an object out of view from one that is gone. A cell
+                // ever observed has a known cost.
+                observed: if c.observed_update == self.update {
+                    c.observed
+                } else {
+                    0
+                },
                 max_height_cm: c.max_height_cm,
                 elevation_cm: if water > 0 {
                     wc.elev_cm

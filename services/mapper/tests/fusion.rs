@@ -235,6 +235,33 @@ fn costs_and_hazards_average_the_last_three_observations_and_water_needs_two_sig
 }
 
 #[test]
+fn observed_counts_only_what_the_latest_local_map_saw_and_known_cells_keep_their_cost() {
+    let mut m = WorldMapper::new(Config::default()).unwrap();
+    // Two frames, each observing one cell: the tracker reads `observed` as the sensors' coverage
+    // now, to keep a contact that is out of view rather than gone.
+    let mut feed = |k: u64, at: [f64; 2]| {
+        let hdr = local_header(1_000_000_000 + k * 100_000_000, [0.0, 0.0], 40);
+        let mut cells = unknown(hdr.grid.cell_count());
+        let (c, r) = hdr.grid.cell_of(at[0], at[1]).unwrap();
+        cells[(r * hdr.grid.width + c) as usize] = MapCell {
+            cost: 90,
+            hazard: 90,
+            observed: 4,
+            ..Default::default()
+        };
+        m.fuse(&hdr, &cells).unwrap();
+        world(&m)
+    };
+    let (h, out) = feed(0, [3.2, 4.1]);
+    assert_eq!(cell_at(&h.grid, &out, 3.2, 4.1).observed, 4);
+    let (h, out) = feed(1, [-5.2, -4.1]);
+    let old = cell_at(&h.grid, &out, 3.2, 4.1);
+    assert_eq!((old.observed, old.cost), (0, 30), "out of view now, its cost still known");
+    assert_eq!(cell_at(&h.grid, &out, -5.2, -4.1).observed, 4);
+    assert_eq!(cell_at(&h.grid, &out, 10.0, 10.0).observed, 0);
+}
+
+#[test]
 fn the_map_scrolls_with_the_vessel_and_drops_what_falls_off() {
     let mut m = WorldMapper::new(Config {
         hazard_half_life_s: 1e6,

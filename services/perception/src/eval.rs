@@ -1,7 +1,8 @@
 //! Scoring a hazard map against the simulator's ground truth (for `usv eval` and training reports).
 //!
 //! Per truth object of the scored classes that stands on the water within range: is it observed
-//! (any cell with points inside its footprint grown by the tolerance), detected (any cell at or above
+//! (any cell with evidence inside its footprint grown by the tolerance: points this cycle, or in a
+//! world map a known cost from before), detected (any cell at or above
 //! the hazard threshold there), and where (the centroid of those cells, compared with the object's
 //! position). Per cell, among observed cells within range: precision = hazard cells that lie in some
 //! object's footprint (grown by the tolerance) over all hazard cells; recall = observed footprint
@@ -159,7 +160,10 @@ pub fn score_hazard_map(
         .filter(|o| params.classes.contains(&o.class))
         .filter(|o| dist([o.pose.position[0], o.pose.position[1]]) <= params.max_range_m)
         .collect();
-    let is_hazard = |c: &MapCell| c.observed > 0 && c.hazard >= params.hazard_threshold;
+    // A cell holds evidence when it was observed this cycle or has a known cost: a world map's
+    // cells seen before, out of the sensors' view now.
+    let known = |c: &MapCell| c.observed > 0 || c.cost != MapCell::UNKNOWN_COST;
+    let is_hazard = |c: &MapCell| known(c) && c.hazard >= params.hazard_threshold;
     let tol = params.tolerance_m;
     let half_cell = g.resolution_m / 2.0;
     let reach = (tol / g.resolution_m).ceil() as i64;
@@ -169,7 +173,7 @@ pub fn score_hazard_map(
         let (mut observed, mut n, mut sum) = (false, 0usize, [0f64; 2]);
         for_cells_near(g, o, tol + half_cell, |col, row, centre| {
             let c = &cells[(row * g.width + col) as usize];
-            if c.observed > 0 && in_footprint(o, centre, tol) {
+            if known(c) && in_footprint(o, centre, tol) {
                 observed = true;
                 if is_hazard(c) {
                     n += 1;
@@ -192,7 +196,7 @@ pub fn score_hazard_map(
         // Cell recall over this object's observed footprint.
         for_cells_near(g, o, half_cell, |col, row, centre| {
             let c = &cells[(row * g.width + col) as usize];
-            if c.observed == 0 || !in_footprint(o, centre, half_cell) {
+            if !known(c) || !in_footprint(o, centre, half_cell) {
                 return;
             }
             score.footprint_cells += 1;

@@ -56,6 +56,18 @@ pub struct TrackerConfig {
     pub max_coast_s: f64,
     /// A tentative track is deleted after this many consecutive misses.
     pub tentative_misses: u32,
+    /// A track with no cell observed in this map within this radius (m) of its prediction lies
+    /// outside the sensors' coverage (out of the heads' view, beyond mapping range, or hidden):
+    /// its miss is no evidence that the object is gone.
+    pub coverage_radius_m: f64,
+    /// Out of coverage, a confirmed track held at least `unobserved_min_seen_s` (from birth to
+    /// its last detection, and not classed a false alarm) coasts without counting toward its
+    /// coast limit, for at most `unobserved_max_coast_s` and while its position sigma stays
+    /// within `unobserved_max_sigma_m`: a buoy passed abeam stays a contact, a boat that left
+    /// the view is predicted until its position means nothing.
+    pub unobserved_min_seen_s: f64,
+    pub unobserved_max_coast_s: f64,
+    pub unobserved_max_sigma_m: f64,
 }
 
 impl TrackerConfig {
@@ -95,6 +107,12 @@ impl Default for TrackerConfig {
             min_coast_s: 0.4,
             max_coast_s: 2.0,
             tentative_misses: 2,
+            coverage_radius_m: 3.0,
+            // Glint confirms within a second or two and is gone: only what was held longer.
+            unobserved_min_seen_s: 2.0,
+            unobserved_max_coast_s: 30.0,
+            // The eval's gate: beyond it the prediction no longer places the object.
+            unobserved_max_sigma_m: 10.0,
         }
     }
 }
@@ -126,6 +144,8 @@ struct Track {
     /// Hit (1) or miss (0) per map, newest in bit 0.
     history: u32,
     misses: u32,
+    /// Time since the last detection spent outside the sensors' coverage (ns).
+    unobserved_ns: u64,
     confirmed: bool,
     /// Summed class posteriors, indexed by contact class.
     class_score: [f32; 5],
@@ -176,12 +196,18 @@ impl Tracker {
             cfg.gate_chi2,
             cfg.min_coast_s,
             cfg.max_coast_s,
+            cfg.coverage_radius_m,
+            cfg.unobserved_max_sigma_m,
         ];
         if positive.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
             return bad("noise, gate and coast settings must be > 0");
         }
         if cfg.min_coast_s > cfg.max_coast_s {
             return bad("min_coast_s must not exceed max_coast_s");
+        }
+        let non_negative = [cfg.unobserved_min_seen_s, cfg.unobserved_max_coast_s];
+        if non_negative.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+            return bad("unobserved_min_seen_s and unobserved_max_coast_s must be >= 0");
         }
         if !(cfg.link_m > 0.0 && cfg.link_m <= 10.0) {
             return bad("link_m must be within (0, 10]");
@@ -298,6 +324,9 @@ impl Tracker {
         self.assign_manoeuvring(&mut assigned, stamp);
         let nd = self.detections.len();
         let mut used = vec![false; nd];
+        let coast_ns = |s: f64| (s * 1e9) as u64;
+        let dt_ns = coast_ns(dt);
+        let coverage_radius = self.cfg.coverage_radius_m;
         let window_mask = if self.cfg.confirm_window == 32 {
             u32::MAX
         } else {
@@ -313,6 +342,7 @@ impl Tracker {
                     kalman_update(t, Vector2::new(d.position[0], d.position[1]), &r);
                     t.history |= 1;
                     t.misses = 0;
+                    t.unobserved_ns = 0;
                     t.last_hit_ns = stamp;
                     // A component only a guide window let through is the smear of the last
                     // frames: it places the object but says nothing of its shape.
@@ -325,21 +355,34 @@ impl Tracker {
                         t.confirmed = true;
                     }
                 }
-                None => t.misses += 1,
+                None => {
+                    t.misses += 1;
+                    let held = t.confirmed
+                        && t.last_hit_ns - t.born_ns >= coast_ns(self.cfg.unobserved_min_seen_s)
+                        && t.class().0 != contact_class::FALSE_ALARM;
+                    if held && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius) {
+                        t.unobserved_ns += dt_ns;
+                    }
+                }
             }
         }
-        let coast_ns = |s: f64| (s * 1e9) as u64;
         let (min_coast_ns, max_coast_ns) = (
             coast_ns(self.cfg.min_coast_s),
             coast_ns(self.cfg.max_coast_s),
         );
         let tentative_misses = self.cfg.tentative_misses;
+        let max_unobserved_ns = coast_ns(self.cfg.unobserved_max_coast_s);
+        let max_sigma = self.cfg.unobserved_max_sigma_m;
         self.tracks.retain(|t| {
             let inside = g.cell_of(t.x[0], t.x[1]).is_some();
             inside
                 && if t.confirmed {
                     let seen_ns = t.last_hit_ns.saturating_sub(t.born_ns);
-                    stamp - t.last_hit_ns <= seen_ns.clamp(min_coast_ns, max_coast_ns)
+                    let coasted_in_view_ns = (stamp - t.last_hit_ns).saturating_sub(t.unobserved_ns);
+                    coasted_in_view_ns <= seen_ns.clamp(min_coast_ns, max_coast_ns)
+                        && (t.unobserved_ns == 0
+                            || (t.unobserved_ns <= max_unobserved_ns
+                                && position_sigma(t) <= max_sigma))
                 } else {
                     t.misses < tentative_misses
                 }
@@ -378,6 +421,7 @@ impl Tracker {
                 last_hit_ns: stamp,
                 history: 1,
                 misses: 0,
+                unobserved_ns: 0,
                 confirmed: self.cfg.confirm_hits <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
@@ -589,6 +633,27 @@ fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
     t.p = i_kh * t.p * i_kh.transpose() + k * r * k.transpose();
 }
 
+/// Whether any cell within `radius` (m) of (x, y) was observed in this map.
+fn observed_near(g: &GridGeometry, cells: &[MapCell], x: f64, y: f64, radius: f64) -> bool {
+    let reach = (radius / g.resolution_m).ceil() as i64;
+    let Some((col, row)) = g.cell_of(x, y) else {
+        return false;
+    };
+    let (w, h) = (g.width as i64, g.height as i64);
+    let rows = (row as i64 - reach).max(0)..=(row as i64 + reach).min(h - 1);
+    rows.into_iter().any(|r| {
+        let cols = (col as i64 - reach).max(0)..=(col as i64 + reach).min(w - 1);
+        cols.into_iter()
+            .any(|c| cells[(r * w + c) as usize].observed > 0)
+    })
+}
+
+/// Largest position standard deviation of a track (m): the major semi-axis of its 1-sigma ellipse.
+fn position_sigma(t: &Track) -> f64 {
+    let p = t.p.fixed_view::<2, 2>(0, 0).into_owned();
+    p.symmetric_eigenvalues().max().max(0.0).sqrt()
+}
+
 /// Two confirmed tracks whose velocities differ by less than this (m/s) can be one object.
 const DUPLICATE_SPEED_MPS: f64 = 1.5;
 
@@ -674,6 +739,7 @@ mod tests {
             last_hit_ns: NOW - 600_000_000,
             history: 0b1110,
             misses: 1,
+            unobserved_ns: 0,
             confirmed: true,
             class_score: [0.0; 5],
             extent: [3.0, 6.0, 1.5],

@@ -19,6 +19,17 @@ fn model() -> Model {
     Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json")).unwrap()
 }
 
+/// A map in which the heads saw open water everywhere (no hazard, every cell observed).
+fn open_water(grid: &GridGeometry) -> Vec<MapCell> {
+    vec![
+        MapCell {
+            observed: 1,
+            ..Default::default()
+        };
+        grid.cell_count()
+    ]
+}
+
 /// Paints a 6 m x 2.5 m hull centred at `centre`, heading along the unit vector `heading`, as
 /// stereo maps it: its rim at `hazard`, not a solid rectangle.
 fn paint_hull_rim(
@@ -70,7 +81,7 @@ fn a_boat_moving_at_5_mps_gives_one_confirmed_track_with_a_stable_id() {
     for k in 0..80u64 {
         let time = k as f64 * 0.1;
         let (bx, by) = (-20.0 + vx * time, -15.0 + vy * time);
-        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let mut cells = open_water(&grid);
         paint_hull_rim(
             &grid,
             &mut cells,
@@ -141,7 +152,7 @@ fn a_boat_mapped_as_hull_and_wake_blobs_is_one_track() {
     // A 6 m x 2.5 m boat heading north at 5 m/s, and its wake 1.5 m astern, 10 Hz for 6 s.
     for k in 0..60u64 {
         let bow_y = -20.0 + 0.5 * k as f64;
-        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let mut cells = open_water(&grid);
         let mut blob = |x0: f64, x1: f64, y0: f64, y1: f64, hazard: u8| {
             for row in 0..grid.height {
                 for col in 0..grid.width {
@@ -190,7 +201,7 @@ fn fast_boat_in_an_averaged_map(cfg: TrackerConfig, weak: [u8; 2]) -> (Vec<u32>,
     let mut first_id = 0;
     for k in 0..40u64 {
         let bow = |k: u64| -30.0 + 1.4 * k as f64;
-        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let mut cells = open_water(&grid);
         let footprints: &[(f64, u8)] = if k < 10 {
             &[(bow(k), 150)]
         } else {
@@ -262,7 +273,7 @@ fn a_boat_that_turns_while_mapped_weakly_keeps_its_track_and_its_new_course() {
             course += 8f64.to_radians();
         }
         pos = [pos[0] + 1.4 * course.cos(), pos[1] + 1.4 * course.sin()];
-        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let mut cells = open_water(&grid);
         let hazard = match k {
             0..15 => Some(150),
             15..17 => None,
@@ -310,7 +321,7 @@ fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
     // too small to stand for a boat on their own), reshuffled every frame like sun glint.
     let mut seed = 12345u32;
     for k in 0..30u64 {
-        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let mut cells = open_water(&grid);
         if k < 10 {
             let bow_y = -30.0 + 1.4 * k as f64;
             paint_hull_rim(&grid, &mut cells, [0.0, bow_y - 3.0], [0.0, 1.0], 150);
@@ -355,7 +366,7 @@ fn a_track_seen_for_a_moment_coasts_briefly_and_one_seen_for_long_coasts_through
     // (20, 20) in 4 maps (0.6 s from birth to last sighting). Then 1.4 s with neither.
     let (moored, glint) = ([-20.0, 20.0], [20.0, 20.0]);
     for k in 0..33u64 {
-        let mut cells = vec![MapCell::default(); grid.cell_count()];
+        let mut cells = open_water(&grid);
         if k < 25 {
             paint_hull_rim(&grid, &mut cells, moored, [1.0, 0.0], 150);
         }
@@ -415,4 +426,57 @@ fn an_inconsistent_configuration_is_refused_with_the_reason() {
         ..TrackerConfig::default()
     });
     assert!(e.contains("guided_lifted_height_m must be within"), "{e}");
+}
+
+#[test]
+fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let confirmed_near = |list: &ContactList, at: [f64; 2]| {
+        list.as_slice()
+            .iter()
+            .find(|c| c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 1.0)
+            .copied()
+    };
+    // 5 Hz maps. A moored boat at (-20, 20) seen for 4 s, and glint at (-20, -20) for 0.6 s at the
+    // end of it. Then for 10 s the heads look east only: the west half of the map is unobserved.
+    // Then they see the west again, open water without the boat.
+    let (moored, glint) = ([-20.0, 20.0], [-20.0, -20.0]);
+    let mut last_seen = None;
+    for k in 0..90u64 {
+        let mut cells = open_water(&grid);
+        if k < 20 {
+            paint_hull_rim(&grid, &mut cells, moored, [1.0, 0.0], 150);
+        }
+        if (16..20).contains(&k) {
+            paint_hull_rim(&grid, &mut cells, glint, [1.0, 0.0], 150);
+        }
+        if (20..70).contains(&k) {
+            for row in 0..grid.height {
+                for col in 0..grid.width / 2 {
+                    cells[(row * grid.width + col) as usize].observed = 0;
+                }
+            }
+        }
+        let hdr = map_header(grid, k, 200_000_000);
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        match k {
+            19 => assert!(confirmed_near(&list, glint).is_some(), "{:?}", list.as_slice()),
+            // Seen 0.6 s, the glint coasts no longer out of view than in it.
+            24 => assert!(confirmed_near(&list, glint).is_none(), "{:?}", list.as_slice()),
+            20..70 => {
+                let c = confirmed_near(&list, moored);
+                assert!(c.is_some(), "map {k}: {:?}", list.as_slice());
+                assert_eq!(c.unwrap().coasting, 1);
+            }
+            _ => {}
+        }
+        if confirmed_near(&list, moored).is_some() {
+            last_seen = Some(k);
+        }
+    }
+    // Back in view and not there: gone within the 2 s a track seen for 4 s may coast in view.
+    let last = last_seen.unwrap();
+    assert!((70..=80).contains(&last), "last reported at map {last}");
 }
