@@ -256,7 +256,11 @@ fn observed_counts_only_what_the_latest_local_map_saw_and_known_cells_keep_their
     assert_eq!(cell_at(&h.grid, &out, 3.2, 4.1).observed, 4);
     let (h, out) = feed(1, [-5.2, -4.1]);
     let old = cell_at(&h.grid, &out, 3.2, 4.1);
-    assert_eq!((old.observed, old.cost), (0, 30), "out of view now, its cost still known");
+    assert_eq!(
+        (old.observed, old.cost),
+        (0, 30),
+        "out of view now, its cost still known"
+    );
     assert_eq!(cell_at(&h.grid, &out, -5.2, -4.1).observed, 4);
     assert_eq!(cell_at(&h.grid, &out, 10.0, 10.0).observed, 0);
 }

@@ -361,6 +361,16 @@ impl Tracker {
                         && t.last_hit_ns - t.born_ns >= coast_ns(self.cfg.unobserved_min_seen_s)
                         && t.class().0 != contact_class::FALSE_ALARM;
                     if held && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius) {
+                        // A marker is anchored, and a slow estimate is mostly noise (partial
+                        // detections at the edge of the view drag a buoy's track at ~1 m/s): out
+                        // of view such a track stays where it was last placed instead of drifting.
+                        let (class, _) = t.class();
+                        let speed = t.x[2].hypot(t.x[3]);
+                        if class == contact_class::CHANNEL_MARKER || speed < ANCHORED_MAX_SPEED_MPS
+                        {
+                            t.x[2] = 0.0;
+                            t.x[3] = 0.0;
+                        }
                         t.unobserved_ns += dt_ns;
                     }
                 }
@@ -378,7 +388,8 @@ impl Tracker {
             inside
                 && if t.confirmed {
                     let seen_ns = t.last_hit_ns.saturating_sub(t.born_ns);
-                    let coasted_in_view_ns = (stamp - t.last_hit_ns).saturating_sub(t.unobserved_ns);
+                    let coasted_in_view_ns =
+                        (stamp - t.last_hit_ns).saturating_sub(t.unobserved_ns);
                     coasted_in_view_ns <= seen_ns.clamp(min_coast_ns, max_coast_ns)
                         && (t.unobserved_ns == 0
                             || (t.unobserved_ns <= max_unobserved_ns
@@ -633,6 +644,9 @@ fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
     t.p = i_kh * t.p * i_kh.transpose() + k * r * k.transpose();
 }
 
+/// Out of coverage, a track slower than this (m/s) is held still (see `update`).
+const ANCHORED_MAX_SPEED_MPS: f64 = 1.0;
+
 /// Whether any cell within `radius` (m) of (x, y) was observed in this map.
 fn observed_near(g: &GridGeometry, cells: &[MapCell], x: f64, y: f64, radius: f64) -> bool {
     let reach = (radius / g.resolution_m).ceil() as i64;
@@ -747,6 +761,43 @@ mod tests {
     }
 
     const NOW: u64 = 200_000_000_000;
+
+    #[test]
+    fn a_marker_out_of_view_is_held_where_it_was_not_drifted_by_its_velocity() {
+        let model = Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json"))
+            .unwrap();
+        let mut tracker = Tracker::new(TrackerConfig::default(), model).unwrap();
+        // A buoy held for 10 s whose track picked up 0.9 m/s as it left the view, and a boat.
+        let mut marker = coasting(5, NOW - 10_000_000_000, [10.0, 10.0], [0.9, 0.0]);
+        marker.class_score[contact_class::CHANNEL_MARKER as usize] = 3.0;
+        let mut boat = coasting(6, NOW - 10_000_000_000, [-10.0, 10.0], [0.0, 5.0]);
+        boat.class_score[contact_class::BOAT as usize] = 3.0;
+        tracker.tracks = vec![marker, boat];
+        tracker.last_stamp = Some(NOW);
+        let grid = GridGeometry {
+            width: 200,
+            height: 200,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        // Nothing observed: both are out of the sensors' view for 5 s.
+        let cells = vec![MapCell::default(); grid.cell_count()];
+        let mut list = ContactList::default();
+        for k in 1..=25u64 {
+            let hdr = WorldMapHeader {
+                hdr: Header::new(k, NOW + k * 200_000_000, "test"),
+                grid,
+                ..Default::default()
+            };
+            tracker.update(&hdr, &cells, "test", &mut list).unwrap();
+        }
+        let by_id = |id| list.as_slice().iter().find(|c| c.id == id).unwrap();
+        let m = by_id(5);
+        assert!((m.position[0] - 10.18).abs() < 0.01, "{m:?}");
+        assert_eq!(m.velocity, [0.0, 0.0]);
+        // The boat is predicted on along its course.
+        assert!((by_id(6).position[1] - 35.0).abs() < 0.5, "{:?}", by_id(6));
+    }
 
     #[test]
     fn in_a_manoeuvre_the_oldest_track_takes_the_detection_in_both_windows() {

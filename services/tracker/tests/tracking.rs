@@ -436,7 +436,9 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     let confirmed_near = |list: &ContactList, at: [f64; 2]| {
         list.as_slice()
             .iter()
-            .find(|c| c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 1.0)
+            .find(|c| {
+                c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 1.0
+            })
             .copied()
     };
     // 5 Hz maps. A moored boat at (-20, 20) seen for 4 s, and glint at (-20, -20) for 0.6 s at the
@@ -462,9 +464,17 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
         let hdr = map_header(grid, k, 200_000_000);
         t.update(&hdr, &cells, "tracker", &mut list).unwrap();
         match k {
-            19 => assert!(confirmed_near(&list, glint).is_some(), "{:?}", list.as_slice()),
+            19 => assert!(
+                confirmed_near(&list, glint).is_some(),
+                "{:?}",
+                list.as_slice()
+            ),
             // Seen 0.6 s, the glint coasts no longer out of view than in it.
-            24 => assert!(confirmed_near(&list, glint).is_none(), "{:?}", list.as_slice()),
+            24 => assert!(
+                confirmed_near(&list, glint).is_none(),
+                "{:?}",
+                list.as_slice()
+            ),
             20..70 => {
                 let c = confirmed_near(&list, moored);
                 assert!(c.is_some(), "map {k}: {:?}", list.as_slice());
