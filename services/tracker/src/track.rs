@@ -48,6 +48,13 @@ pub struct TrackerConfig {
     /// A track is confirmed after `confirm_hits` detections in its last `confirm_window` maps.
     pub confirm_hits: u32,
     pub confirm_window: u32,
+    /// Detected `confirm_far_m` or more from the own vessel, a track is confirmed only after
+    /// `confirm_far_hits` detections in its last `confirm_far_window` maps: far out a detection
+    /// says less (stereo range error grows with the square of range), and sun-glint mismatches,
+    /// which come and go from map to map, lie 40-70 m out.
+    pub confirm_far_m: f64,
+    pub confirm_far_hits: u32,
+    pub confirm_far_window: u32,
     /// A confirmed track is deleted after coasting as long as it had been seen (from birth to its
     /// last detection), but at least `min_coast_s` and at most `max_coast_s`. A track confirmed
     /// from a second of glint or wake is gone a moment after the glint; one that has held an
@@ -104,6 +111,9 @@ impl Default for TrackerConfig {
             gate_chi2: 9.21,
             confirm_hits: 3,
             confirm_window: 5,
+            confirm_far_m: 40.0,
+            confirm_far_hits: 5,
+            confirm_far_window: 8,
             min_coast_s: 0.4,
             max_coast_s: 2.0,
             tentative_misses: 2,
@@ -182,11 +192,21 @@ pub struct Tracker {
 impl Tracker {
     pub fn new(cfg: TrackerConfig, model: Model) -> Result<Self, TrackError> {
         let bad = |m: &str| Err(TrackError::Config(m.to_string()));
-        if cfg.confirm_window == 0 || cfg.confirm_window > 32 || cfg.confirm_hits == 0 {
-            return bad("confirm_window must be 1..=32 and confirm_hits >= 1");
+        for (hits, window) in [
+            (cfg.confirm_hits, cfg.confirm_window),
+            (cfg.confirm_far_hits, cfg.confirm_far_window),
+        ] {
+            if window == 0 || window > 32 || hits == 0 {
+                return bad(
+                    "confirm_window and confirm_far_window must be 1..=32, their hits >= 1",
+                );
+            }
+            if hits > window {
+                return bad("confirm_hits must not exceed confirm_window (nor the far ones)");
+            }
         }
-        if cfg.confirm_hits > cfg.confirm_window {
-            return bad("confirm_hits must not exceed confirm_window");
+        if !(cfg.confirm_far_m > 0.0) {
+            return bad("confirm_far_m must be > 0");
         }
         let positive = [
             cfg.accel_sigma,
@@ -327,13 +347,9 @@ impl Tracker {
         let coast_ns = |s: f64| (s * 1e9) as u64;
         let dt_ns = coast_ns(dt);
         let coverage_radius = self.cfg.coverage_radius_m;
-        let window_mask = if self.cfg.confirm_window == 32 {
-            u32::MAX
-        } else {
-            (1u32 << self.cfg.confirm_window) - 1
-        };
+        let history_mask = window_mask(self.cfg.confirm_window.max(self.cfg.confirm_far_window));
         for (ti, t) in self.tracks.iter_mut().enumerate() {
-            t.history = (t.history << 1) & window_mask;
+            t.history = (t.history << 1) & history_mask;
             match assigned[ti] {
                 Some(di) => {
                     used[di] = true;
@@ -351,7 +367,8 @@ impl Tracker {
                         t.class_score[class as usize % 5] += conf;
                         t.extent = [d.extent[0] as f32, d.extent[1] as f32, d.height as f32];
                     }
-                    if t.history.count_ones() >= self.cfg.confirm_hits {
+                    let (hits, window) = confirm_rule(&self.cfg, own, d.position);
+                    if (t.history & window_mask(window)).count_ones() >= hits {
                         t.confirmed = true;
                     }
                 }
@@ -433,7 +450,7 @@ impl Tracker {
                 history: 1,
                 misses: 0,
                 unobserved_ns: 0,
-                confirmed: self.cfg.confirm_hits <= 1,
+                confirmed: confirm_rule(&self.cfg, own, d.position).0 <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
             });
@@ -642,6 +659,25 @@ fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
     // Joseph form keeps P symmetric and positive.
     let i_kh = Matrix4::identity() - k * h;
     t.p = i_kh * t.p * i_kh.transpose() + k * r * k.transpose();
+}
+
+/// Bit mask of the newest `window` maps of a track's history.
+fn window_mask(window: u32) -> u32 {
+    if window >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << window) - 1
+    }
+}
+
+/// (hits, window) that confirm a track detected at `position`, seen from `own`.
+fn confirm_rule(cfg: &TrackerConfig, own: Vector2<f64>, position: [f64; 2]) -> (u32, u32) {
+    let range = (Vector2::new(position[0], position[1]) - own).norm();
+    if range >= cfg.confirm_far_m {
+        (cfg.confirm_far_hits, cfg.confirm_far_window)
+    } else {
+        (cfg.confirm_hits, cfg.confirm_window)
+    }
 }
 
 /// Out of coverage, a track slower than this (m/s) is held still (see `update`).

@@ -490,3 +490,31 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     let last = last_seen.unwrap();
     assert!((70..=80).contains(&last), "last reported at map {last}");
 }
+
+#[test]
+fn far_out_a_track_needs_more_sightings_before_it_is_confirmed() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let confirmed_near = |list: &ContactList, at: [f64; 2]| {
+        list.as_slice()
+            .iter()
+            .any(|c| c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 2.0)
+    };
+    // 5 Hz maps. Flicker (in every other map) 20 m and 45 m out, and a hull 45 m out in every map.
+    let (near_flicker, far_flicker, far_steady) = ([0.0, 20.0], [-45.0, 0.0], [30.0, -36.0]);
+    for k in 0..20u64 {
+        let mut cells = open_water(&grid);
+        if k % 2 == 0 {
+            paint_hull_rim(&grid, &mut cells, near_flicker, [1.0, 0.0], 150);
+            paint_hull_rim(&grid, &mut cells, far_flicker, [0.0, 1.0], 150);
+        }
+        paint_hull_rim(&grid, &mut cells, far_steady, [1.0, 0.0], 150);
+        let hdr = map_header(grid, k, 200_000_000);
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        // Near, 3 sightings in 5 maps confirm; far out it takes 5 in 8.
+        assert_eq!(confirmed_near(&list, near_flicker), k >= 4, "map {k}");
+        assert_eq!(confirmed_near(&list, far_steady), k >= 4, "map {k}");
+        assert!(!confirmed_near(&list, far_flicker), "map {k}");
+    }
+}
