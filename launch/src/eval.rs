@@ -454,7 +454,7 @@ fn print_report(r: &serde_json::Value) {
         );
         let t = &b["tracking"];
         println!(
-            "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min, of them reported as objects {}, {}/min; {} on the shore), moving-boat speed error p50 {} %, heading error p50 {} deg, along/cross 3-sigma ratio {}",
+            "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min, of them reported as objects {}, {}/min; {} on the shore), moving-boat speed error p50 {} % ({} % while detected), heading error p50 {} deg, along/cross 3-sigma ratio {}",
             t["boats_within_100m"]["detected"],
             t["boats_within_100m"]["frames"],
             in_view(&t["boats_within_100m_in_view"]),
@@ -468,6 +468,7 @@ fn print_report(r: &serde_json::Value) {
             f(&t["false_object_tracks_per_min"], 1.0),
             t["shore_tracks"],
             f(&t["moving_speed_error_pct"]["p50"], 1.0),
+            f(&t["moving_speed_error_pct"]["detected_p50"], 1.0),
             f(&t["moving_heading_error_deg"]["p50"], 1.0),
             f(&t["along_cross_3sigma_ratio"], 1.0),
         );

@@ -79,6 +79,8 @@ pub struct TrackingScore {
     land: Option<LandTest>,
     shore_ids: BTreeSet<u32>,
     speed_errors_pct: Vec<f64>,
+    /// The same over the frames in which the track had a detection (not coasting).
+    detected_speed_errors_pct: Vec<f64>,
     heading_errors_deg: Vec<f64>,
     along_cross: AlongCross,
 }
@@ -177,6 +179,9 @@ impl TrackingScore {
             }
             if let (Some(speed), Some(heading)) = (os.speed_error_pct, os.heading_error) {
                 self.speed_errors_pct.push(speed);
+                if !os.coasting {
+                    self.detected_speed_errors_pct.push(speed);
+                }
                 self.heading_errors_deg.push(heading.to_degrees().abs());
             }
         }
@@ -254,7 +259,9 @@ impl TrackingScore {
             "false_object_tracks_per_min": (scenario_minutes > 0.0)
                 .then(|| self.false_object_tracks() as f64 / scenario_minutes),
             "moving_speed_error_pct": {"p50": median(&self.speed_errors_pct),
-                                       "samples": self.speed_errors_pct.len()},
+                                       "samples": self.speed_errors_pct.len(),
+                                       "detected_p50": median(&self.detected_speed_errors_pct),
+                                       "detected_samples": self.detected_speed_errors_pct.len()},
             "moving_heading_error_deg": {"p50": median(&self.heading_errors_deg)},
             "along_cross_3sigma_ratio": self.along_cross.sigma_ratio(),
             "along_cross_rms_error_m": self.along_cross.rms_errors(),
@@ -343,6 +350,20 @@ mod tests {
         assert_eq!(r["false_object_tracks_per_min"], 2.0);
         let speed = r["moving_speed_error_pct"]["p50"].as_f64().unwrap();
         assert!((speed - 4.0).abs() < 1e-9, "{speed}");
+        assert_eq!(r["moving_speed_error_pct"]["detected_samples"], 1);
+        // A frame in which the boat's track only coasts (at 4 m/s) counts over all frames only.
+        s.on_truth(&truth(9));
+        list.hdr.stamp_ns = 9;
+        list.contacts[0] = Contact {
+            coasting: 1,
+            ..contact(10, [1.0, 40.0], [4.0, 0.0])
+        };
+        s.on_contacts(&list);
+        let r = s.report(0.5);
+        assert_eq!(r["moving_speed_error_pct"]["samples"], 2);
+        assert_eq!(r["moving_speed_error_pct"]["detected_samples"], 1);
+        let detected = r["moving_speed_error_pct"]["detected_p50"].as_f64().unwrap();
+        assert!((detected - 4.0).abs() < 1e-9, "{detected}");
         // The boat is 40 m out: the 25-50 m bin, and 5 lengths -> the 5-10 lengths bin.
         let boat_bin = r["by_range_m"]
             .as_array()

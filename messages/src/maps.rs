@@ -74,10 +74,12 @@ pub struct LocalMapHeader {
     pub vessel: Pose,
 }
 
-/// User header of the fused world map. Payload: `[MapCell]`.
+/// User header of the fused world map. Payload: `[MapCell]`, whose `observed` counts the latest
+/// fused local map's observations (the sensors' coverage now; v1 counted every local map that had
+/// ever observed the cell). A cell observed before has a known cost.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, ZeroCopySend)]
-#[type_name("usv.WorldMap.v1")]
+#[type_name("usv.WorldMap.v2")]
 pub struct WorldMapHeader {
     pub hdr: Header,
     pub grid: GridGeometry,

@@ -10,6 +10,8 @@ pub struct ObjectScore {
     pub range_lengths: f64,
     /// Id of the nearest confirmed track within the gate, if any.
     pub track_id: Option<u32>,
+    /// That track had no detection this frame (out of view it is a prediction).
+    pub coasting: bool,
     /// |speed error| / true speed in percent (None when the object is slower than 0.5 m/s).
     pub speed_error_pct: Option<f64>,
     /// Heading error (rad, wrapped to +-pi; None below 0.5 m/s).
@@ -54,6 +56,7 @@ pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f6
             .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.id.cmp(&b.0.id)));
         if let Some((c, _)) = best {
             s.track_id = Some(c.id);
+            s.coasting = c.coasting == 1;
             let speed = o.velocity[0].hypot(o.velocity[1]);
             if speed >= 0.5 {
                 let est = c.velocity[0].hypot(c.velocity[1]);

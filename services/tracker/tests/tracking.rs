@@ -493,7 +493,11 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
 
 #[test]
 fn far_out_a_track_needs_more_sightings_before_it_is_confirmed() {
-    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let cfg = TrackerConfig {
+        confirm_far_m: 40.0,
+        ..TrackerConfig::default()
+    };
+    let mut t = Tracker::new(cfg, model()).unwrap();
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
     let confirmed_near = |list: &ContactList, at: [f64; 2]| {
