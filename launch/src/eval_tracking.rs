@@ -362,7 +362,9 @@ mod tests {
         let r = s.report(0.5);
         assert_eq!(r["moving_speed_error_pct"]["samples"], 2);
         assert_eq!(r["moving_speed_error_pct"]["detected_samples"], 1);
-        let detected = r["moving_speed_error_pct"]["detected_p50"].as_f64().unwrap();
+        let detected = r["moving_speed_error_pct"]["detected_p50"]
+            .as_f64()
+            .unwrap();
         assert!((detected - 4.0).abs() < 1e-9, "{detected}");
         // The boat is 40 m out: the 25-50 m bin, and 5 lengths -> the 5-10 lengths bin.
         let boat_bin = r["by_range_m"]
