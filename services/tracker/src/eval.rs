@@ -97,7 +97,9 @@ pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f6
 }
 
 /// Accumulates along- and cross-track errors and sigmas over a run for the paper's 3-sigma RMS
-/// ratio (along / cross; 1.65 for position in the Hammerhead following run).
+/// ratio (along / cross; 1.65 for position in the Hammerhead following run). Only frames in which
+/// the track had a detection count: a prediction held out of view grows its covariance in every
+/// direction and would swamp the ratio the measurements give.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct AlongCross {
     pub n: u64,
@@ -109,7 +111,7 @@ pub struct AlongCross {
 
 impl AlongCross {
     pub fn add(&mut self, s: &ObjectScore) {
-        if s.track_id.is_none() {
+        if s.track_id.is_none() || s.coasting {
             return;
         }
         self.n += 1;
@@ -202,5 +204,13 @@ mod tests {
             ac.add(o);
         }
         assert!((ac.sigma_ratio().unwrap() - 4.0).abs() < 1e-6);
+        // A held prediction (coasting) with a wide covariance across does not count.
+        ac.add(&ObjectScore {
+            coasting: true,
+            cross_sigma: 50.0,
+            ..boat
+        });
+        assert!((ac.sigma_ratio().unwrap() - 4.0).abs() < 1e-6);
+        assert_eq!(ac.n, 1);
     }
 }
