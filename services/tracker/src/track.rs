@@ -208,7 +208,7 @@ impl Tracker {
                 return bad("confirm_hits must not exceed confirm_window (nor the far ones)");
             }
         }
-        if !(cfg.confirm_far_m > 0.0) {
+        if cfg.confirm_far_m.is_nan() || cfg.confirm_far_m <= 0.0 {
             return bad("confirm_far_m must be > 0");
         }
         let positive = [
