@@ -377,14 +377,14 @@ impl Tracker {
                 }
                 None => {
                     t.misses += 1;
+                    let (class, _) = t.class();
                     let held = t.confirmed
                         && t.last_hit_ns - t.born_ns >= coast_ns(self.cfg.unobserved_min_seen_s)
-                        && t.class().0 != contact_class::FALSE_ALARM;
+                        && class != contact_class::FALSE_ALARM;
                     if held && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius) {
                         // A marker is anchored, and a slow estimate is mostly noise (partial
                         // detections at the edge of the view drag a buoy's track at ~1 m/s): out
                         // of view such a track stays where it was last placed instead of drifting.
-                        let (class, _) = t.class();
                         let speed = t.x[2].hypot(t.x[3]);
                         if class == contact_class::CHANNEL_MARKER || speed < ANCHORED_MAX_SPEED_MPS
                         {

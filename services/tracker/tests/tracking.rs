@@ -1,7 +1,9 @@
 //! Tracking with the committed contact model: a blob moving at 5 m/s across a sequence of world
 //! maps gives one confirmed track with a stable id and its speed within 4 %.
 
-use messages::{contact_class, ContactList, GridGeometry, Header, MapCell, Pose, WorldMapHeader};
+use messages::{
+    contact_class, Contact, ContactList, GridGeometry, Header, MapCell, Pose, WorldMapHeader,
+};
 use std::path::Path;
 use tracker::{Model, Tracker, TrackerConfig};
 
@@ -28,6 +30,14 @@ fn open_water(grid: &GridGeometry) -> Vec<MapCell> {
         };
         grid.cell_count()
     ]
+}
+
+/// The confirmed contact within `within` m of `at`, if any.
+fn confirmed_near(list: &ContactList, at: [f64; 2], within: f64) -> Option<Contact> {
+    list.as_slice()
+        .iter()
+        .find(|c| c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < within)
+        .copied()
 }
 
 /// Paints a 6 m x 2.5 m hull centred at `centre`, heading along the unit vector `heading`, as
@@ -357,11 +367,7 @@ fn a_track_seen_for_a_moment_coasts_briefly_and_one_seen_for_long_coasts_through
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
-    let confirmed_near = |list: &ContactList, at: [f64; 2]| {
-        list.as_slice()
-            .iter()
-            .any(|c| c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 3.0)
-    };
+    let confirmed_near = |list: &ContactList, at| confirmed_near(list, at, 3.0).is_some();
     // 5 Hz maps. A moored boat at (-20, 20) in every map of the first 5 s; a glint-like blob at
     // (20, 20) in 4 maps (0.6 s from birth to last sighting). Then 1.4 s with neither.
     let (moored, glint) = ([-20.0, 20.0], [20.0, 20.0]);
@@ -433,14 +439,7 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
-    let confirmed_near = |list: &ContactList, at: [f64; 2]| {
-        list.as_slice()
-            .iter()
-            .find(|c| {
-                c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 1.0
-            })
-            .copied()
-    };
+    let confirmed_near = |list: &ContactList, at| confirmed_near(list, at, 1.0);
     // 5 Hz maps. A moored boat at (-20, 20) seen for 4 s, and glint at (-20, -20) for 0.6 s at the
     // end of it. Then for 10 s the heads look east only: the west half of the map is unobserved.
     // Then they see the west again, open water without the boat.
@@ -500,11 +499,7 @@ fn far_out_a_track_needs_more_sightings_before_it_is_confirmed() {
     let mut t = Tracker::new(cfg, model()).unwrap();
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
-    let confirmed_near = |list: &ContactList, at: [f64; 2]| {
-        list.as_slice()
-            .iter()
-            .any(|c| c.confirmed == 1 && (c.position[0] - at[0]).hypot(c.position[1] - at[1]) < 2.0)
-    };
+    let confirmed_near = |list: &ContactList, at| confirmed_near(list, at, 2.0).is_some();
     // 5 Hz maps. Flicker (in every other map) 20 m and 45 m out, and a hull 45 m out in every map.
     let (near_flicker, far_flicker, far_steady) = ([0.0, 20.0], [-45.0, 0.0], [30.0, -36.0]);
     for k in 0..20u64 {
