@@ -76,6 +76,11 @@ pub struct TrackerConfig {
     pub unobserved_min_seen_s: f64,
     pub unobserved_max_coast_s: f64,
     pub unobserved_max_sigma_m: f64,
+    /// ... and only if it was detected in at least `unobserved_min_hits` of the
+    /// `unobserved_window` maps before it left coverage: sun glint, detected in about one map in
+    /// three, is not carried out of view and predicted across the boat's path.
+    pub unobserved_min_hits: u32,
+    pub unobserved_window: u32,
 }
 
 impl TrackerConfig {
@@ -126,6 +131,9 @@ impl Default for TrackerConfig {
             unobserved_max_coast_s: 30.0,
             // The eval's gate: beyond it the prediction no longer places the object.
             unobserved_max_sigma_m: 10.0,
+            // A real object in view is missed about one map in five, glint two in three.
+            unobserved_min_hits: 5,
+            unobserved_window: 8,
         }
     }
 }
@@ -207,6 +215,12 @@ impl Tracker {
             if hits > window {
                 return bad("confirm_hits must not exceed confirm_window (nor the far ones)");
             }
+        }
+        if cfg.unobserved_window == 0 || cfg.unobserved_window > 31 {
+            return bad("unobserved_window must be 1..=31");
+        }
+        if cfg.unobserved_min_hits > cfg.unobserved_window {
+            return bad("unobserved_min_hits must not exceed unobserved_window");
         }
         if cfg.confirm_far_m.is_nan() || cfg.confirm_far_m <= 0.0 {
             return bad("confirm_far_m must be > 0");
@@ -350,7 +364,13 @@ impl Tracker {
         let coast_ns = |s: f64| (s * 1e9) as u64;
         let dt_ns = coast_ns(dt);
         let coverage_radius = self.cfg.coverage_radius_m;
-        let history_mask = window_mask(self.cfg.confirm_window.max(self.cfg.confirm_far_window));
+        // The hold rule looks at the maps before the current one: one bit more.
+        let history_mask = window_mask(
+            (self.cfg.confirm_window)
+                .max(self.cfg.confirm_far_window)
+                .max(self.cfg.unobserved_window + 1),
+        );
+        let unobserved_mask = window_mask(self.cfg.unobserved_window);
         for (ti, t) in self.tracks.iter_mut().enumerate() {
             t.history = (t.history << 1) & history_mask;
             match assigned[ti] {
@@ -378,9 +398,15 @@ impl Tracker {
                 None => {
                     t.misses += 1;
                     let (class, _) = t.class();
+                    // Once held, the misses out of coverage fill the history: the detection record
+                    // is judged only when the track first leaves coverage.
+                    let reliably_seen = t.unobserved_ns > 0
+                        || ((t.history >> 1) & unobserved_mask).count_ones()
+                            >= self.cfg.unobserved_min_hits;
                     let held = t.confirmed
                         && t.last_hit_ns - t.born_ns >= coast_ns(self.cfg.unobserved_min_seen_s)
-                        && class != contact_class::FALSE_ALARM;
+                        && class != contact_class::FALSE_ALARM
+                        && reliably_seen;
                     if held && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius) {
                         // A marker is anchored, and a slow estimate is mostly noise (partial
                         // detections at the edge of the view drag a buoy's track at ~1 m/s): out
@@ -790,7 +816,7 @@ mod tests {
             p: Matrix4::identity(),
             born_ns,
             last_hit_ns: NOW - 600_000_000,
-            history: 0b1110,
+            history: 0b1111_1110,
             misses: 1,
             unobserved_ns: 0,
             confirmed: true,

@@ -440,10 +440,11 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
     let confirmed_near = |list: &ContactList, at| confirmed_near(list, at, 1.0);
-    // 5 Hz maps. A moored boat at (-20, 20) seen for 4 s, and glint at (-20, -20) for 0.6 s at the
-    // end of it. Then for 10 s the heads look east only: the west half of the map is unobserved.
-    // Then they see the west again, open water without the boat.
-    let (moored, glint) = ([-20.0, 20.0], [-20.0, -20.0]);
+    // 5 Hz maps. A moored boat at (-20, 20) seen for 4 s, glint at (-20, -20) for 0.6 s at the
+    // end of it, and a flicker at (-35, -5) in the first four maps and then one in three, as sun
+    // glint is seen. Then for 10 s the heads look east only: the west half of the map is
+    // unobserved. Then they see the west again, open water without the boat.
+    let (moored, glint, flicker) = ([-20.0, 20.0], [-20.0, -20.0], [-35.0, -5.0]);
     let mut last_seen = None;
     for k in 0..90u64 {
         let mut cells = open_water(&grid);
@@ -452,6 +453,9 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
         }
         if (16..20).contains(&k) {
             paint_hull_rim(&grid, &mut cells, glint, [1.0, 0.0], 150);
+        }
+        if k < 4 || (k < 20 && k % 3 == 0) {
+            paint_hull_rim(&grid, &mut cells, flicker, [1.0, 0.0], 150);
         }
         if (20..70).contains(&k) {
             for row in 0..grid.height {
@@ -462,9 +466,14 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
         }
         let hdr = map_header(grid, k, 200_000_000);
         t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        // Seen 3.6 s but detected in 3 of its last 8 maps: not held either, gone within the 2 s it
+        // may coast.
+        if k >= 30 {
+            assert!(confirmed_near(&list, flicker).is_none(), "map {k}");
+        }
         match k {
             19 => assert!(
-                confirmed_near(&list, glint).is_some(),
+                confirmed_near(&list, glint).is_some() && confirmed_near(&list, flicker).is_some(),
                 "{:?}",
                 list.as_slice()
             ),
