@@ -77,7 +77,7 @@ pub struct TrackerConfig {
     pub unobserved_max_coast_s: f64,
     pub unobserved_max_sigma_m: f64,
     /// ... and only if it was detected in at least `unobserved_min_hits` of the
-    /// `unobserved_window` maps before it left coverage: sun glint, detected in about one map in
+    /// `unobserved_window` maps up to its last detection: sun glint, detected in about one map in
     /// three, is not carried out of view and predicted across the boat's path.
     pub unobserved_min_hits: u32,
     pub unobserved_window: u32,
@@ -167,6 +167,8 @@ struct Track {
     misses: u32,
     /// Time since the last detection spent outside the sensors' coverage (ns).
     unobserved_ns: u64,
+    /// Detections in the `unobserved_window` maps up to and including the last one.
+    recent_hits: u32,
     confirmed: bool,
     /// Summed class posteriors, indexed by contact class.
     class_score: [f32; 5],
@@ -216,8 +218,8 @@ impl Tracker {
                 return bad("confirm_hits must not exceed confirm_window (nor the far ones)");
             }
         }
-        if cfg.unobserved_window == 0 || cfg.unobserved_window > 31 {
-            return bad("unobserved_window must be 1..=31");
+        if cfg.unobserved_window == 0 || cfg.unobserved_window > 32 {
+            return bad("unobserved_window must be 1..=32");
         }
         if cfg.unobserved_min_hits > cfg.unobserved_window {
             return bad("unobserved_min_hits must not exceed unobserved_window");
@@ -364,11 +366,10 @@ impl Tracker {
         let coast_ns = |s: f64| (s * 1e9) as u64;
         let dt_ns = coast_ns(dt);
         let coverage_radius = self.cfg.coverage_radius_m;
-        // The hold rule looks at the maps before the current one: one bit more.
         let history_mask = window_mask(
             (self.cfg.confirm_window)
                 .max(self.cfg.confirm_far_window)
-                .max(self.cfg.unobserved_window + 1),
+                .max(self.cfg.unobserved_window),
         );
         let unobserved_mask = window_mask(self.cfg.unobserved_window);
         for (ti, t) in self.tracks.iter_mut().enumerate() {
@@ -380,6 +381,7 @@ impl Tracker {
                     let r = measurement_noise(&self.cfg, own, d.position);
                     kalman_update(t, Vector2::new(d.position[0], d.position[1]), &r);
                     t.history |= 1;
+                    t.recent_hits = (t.history & unobserved_mask).count_ones();
                     t.misses = 0;
                     t.unobserved_ns = 0;
                     t.last_hit_ns = stamp;
@@ -398,15 +400,12 @@ impl Tracker {
                 None => {
                     t.misses += 1;
                     let (class, _) = t.class();
-                    // Once held, the misses out of coverage fill the history: the detection record
-                    // is judged only when the track first leaves coverage.
-                    let reliably_seen = t.unobserved_ns > 0
-                        || ((t.history >> 1) & unobserved_mask).count_ones()
-                            >= self.cfg.unobserved_min_hits;
+                    // The record up to the last detection: an object at the edge of the view is
+                    // missed there before it leaves coverage, and that is no evidence against it.
                     let held = t.confirmed
                         && t.last_hit_ns - t.born_ns >= coast_ns(self.cfg.unobserved_min_seen_s)
                         && class != contact_class::FALSE_ALARM
-                        && reliably_seen;
+                        && t.recent_hits >= self.cfg.unobserved_min_hits;
                     if held && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius) {
                         // A marker is anchored, and a slow estimate is mostly noise (partial
                         // detections at the edge of the view drag a buoy's track at ~1 m/s): out
@@ -479,6 +478,7 @@ impl Tracker {
                 history: 1,
                 misses: 0,
                 unobserved_ns: 0,
+                recent_hits: 1,
                 confirmed: confirm_rule(&self.cfg, own, d.position).0 <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
@@ -819,6 +819,7 @@ mod tests {
             history: 0b1111_1110,
             misses: 1,
             unobserved_ns: 0,
+            recent_hits: 7,
             confirmed: true,
             class_score: [0.0; 5],
             extent: [3.0, 6.0, 1.5],
