@@ -7,7 +7,9 @@
 use crate::control::ServiceStatus;
 use crate::observe::Observation;
 use crate::session::Session;
+use crate::supervisor::BACKOFF_RESET_AFTER;
 use serde_json::json;
+use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 /// A killed service not back after this long counts as not recovered.
@@ -26,6 +28,8 @@ pub struct Chaos {
     seed: u64,
     rng: u64,
     victims: Vec<String>,
+    /// Wall time of each victim's latest kill or hang.
+    last_killed: HashMap<String, Instant>,
     next_kill: Instant,
     hang_service: Option<String>,
     hang_after: Duration,
@@ -43,6 +47,7 @@ impl Chaos {
             seed,
             rng: seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1,
             victims,
+            last_killed: HashMap::new(),
             next_kill: Instant::now(),
             hang_service: hang,
             hang_after: Duration::from_secs(12),
@@ -91,31 +96,29 @@ impl Chaos {
                 "SIGSTOP",
             )
         } else {
-            // Services killed in the last 10 s are spared when others remain: the supervisor backs
-            // off a crash loop on purpose, and each kill should measure a plain restart.
-            let recent: Vec<&str> = self
-                .records
-                .iter()
-                .rev()
-                .take_while(|r| {
-                    r["scenario_s"].as_f64().unwrap_or(0.0) > obs.scenario_time_s() - 10.0
-                        || self.started.elapsed() < Duration::from_secs(10)
-                })
-                .filter_map(|r| r["service"].as_str())
-                .collect();
+            // The supervisor backs off a crash loop on purpose (a process that ran less than
+            // `BACKOFF_RESET_AFTER` restarts later each time), and each kill should measure a
+            // plain restart: a service whose restarted process has not run that long is spared,
+            // and when every one is that recent the one killed longest ago is taken. Wall time,
+            // as the supervisor counts: in lock-step a scenario second takes several.
+            let spare = BACKOFF_RESET_AFTER + Duration::from_secs(1);
             let candidates: Vec<String> = self
                 .victims
                 .iter()
-                .filter(|v| !recent.contains(&v.as_str()))
+                .filter(|v| self.last_killed.get(*v).is_none_or(|t| t.elapsed() > spare))
                 .cloned()
                 .collect();
-            let pool = if candidates.is_empty() {
-                self.victims.clone()
+            let victim = if candidates.is_empty() {
+                self.victims
+                    .iter()
+                    .min_by_key(|v| self.last_killed.get(*v).copied())
+                    .cloned()
+                    .unwrap_or_default()
             } else {
-                candidates
+                let k = (self.next() % candidates.len() as u64) as usize;
+                candidates[k].clone()
             };
-            let k = (self.next() % pool.len().max(1) as u64) as usize;
-            (pool[k].clone(), libc::SIGKILL, "SIGKILL")
+            (victim, libc::SIGKILL, "SIGKILL")
         };
         let services = session.ps()?;
         let Some(pid) = services
@@ -129,6 +132,8 @@ impl Chaos {
         };
         // SAFETY: kill(2) on a child of the set's supervisor.
         unsafe { libc::kill(pid as libc::pid_t, signal) };
+        // A hung service is replaced too: its new process counts from then as well.
+        self.last_killed.insert(service.clone(), Instant::now());
         self.outage = Some(Outage {
             service,
             signal: name,

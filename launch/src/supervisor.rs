@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 /// The supervisor wakes this often to reap, read heartbeats and answer requests.
 const POLL: Duration = Duration::from_millis(10);
 /// A service that ran this long before failing restarts with the initial backoff again.
-const BACKOFF_RESET_AFTER: Duration = Duration::from_secs(10);
+pub const BACKOFF_RESET_AFTER: Duration = Duration::from_secs(10);
 /// Window over which `usv ps` computes input rates.
 const RATE_WINDOW: Duration = Duration::from_secs(3);
 
