@@ -76,7 +76,7 @@ pub struct TrackerConfig {
     pub unobserved_min_seen_s: f64,
     pub unobserved_max_coast_s: f64,
     pub unobserved_max_sigma_m: f64,
-    /// ... and only if it was detected in at least `unobserved_min_hits` of the
+    /// A track is held so only if it was also detected in at least `unobserved_min_hits` of the
     /// `unobserved_window` maps up to its last detection: sun glint, detected in about one map in
     /// three, is not carried out of view and predicted across the boat's path.
     pub unobserved_min_hits: u32,
@@ -367,7 +367,8 @@ impl Tracker {
         let dt_ns = coast_ns(dt);
         let coverage_radius = self.cfg.coverage_radius_m;
         let history_mask = window_mask(
-            (self.cfg.confirm_window)
+            self.cfg
+                .confirm_window
                 .max(self.cfg.confirm_far_window)
                 .max(self.cfg.unobserved_window),
         );
