@@ -132,7 +132,8 @@ impl Chaos {
         };
         // SAFETY: kill(2) on a child of the set's supervisor.
         unsafe { libc::kill(pid as libc::pid_t, signal) };
-        // A hung service is replaced too: its new process counts from then as well.
+        // A hung service is replaced too, after the heartbeat timeout: counting from the hang
+        // spares it longer than needed, never too briefly.
         self.last_killed.insert(service.clone(), Instant::now());
         self.outage = Some(Outage {
             service,

@@ -441,9 +441,10 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     let mut list = Box::<ContactList>::default();
     let confirmed_near = |list: &ContactList, at| confirmed_near(list, at, 1.0);
     // 5 Hz maps. A moored boat at (-20, 20) seen for 3.2 s and then missed for 0.8 s (as an object
-    // at the edge of the view is), glint at (-20, -20) for 0.6 s at the end of it, and a flicker at (-35, -5) in the first four maps and then one in three, as sun
-    // glint is seen. Then for 10 s the heads look east only: the west half of the map is
-    // unobserved. Then they see the west again, open water without the boat.
+    // at the edge of the view is), glint at (-20, -20) for 0.6 s at the end of it, and a flicker
+    // at (-35, -5) in the first four maps and then one in three, as sun glint is seen. Then for
+    // 10 s the heads look east only: the west half of the map is unobserved. Then they see the
+    // west again, open water without the boat.
     let (moored, glint, flicker) = ([-20.0, 20.0], [-20.0, -20.0], [-35.0, -5.0]);
     let mut last_seen = None;
     for k in 0..90u64 {
