@@ -77,7 +77,7 @@ pub struct ArcConfig {
     /// While the followed target is within this range (m), an arc is judged only over its first
     /// this many metres ([`Blocked::follow`]). The target clears the water up to itself, and it
     /// meets what lies beyond it first; the boat goes where it went. Judged over 40 m, patches of
-    /// sun glint 25-40 m out that the tracker holds as boats or extended objects for a few seconds
+    /// wave glint 25-40 m out that the tracker holds as boats or extended objects for a few seconds
     /// swerved the boat off the target's track and lost it 10-15 m of range each time.
     pub followed_lookahead_m: f64,
     /// A track first seen within this range (m) blocks no arc until it is `late_birth_min_age_s`
@@ -89,7 +89,7 @@ pub struct ArcConfig {
     pub late_birth_m: f64,
     pub late_birth_min_age_s: f64,
     /// A contact the classifier calls a channel marker that moves faster than this (m/s) once it is
-    /// `moving_min_age_s` old is drifting sun glint, not a moored marker, and is left to the map
+    /// `moving_min_age_s` old is drifting wave glint, not a moored marker, and is left to the map
     /// like extended contacts. In follow_boat's log such a "marker", 4 x 6.5 m and drifting at
     /// 4.5 m/s, blocked every arc 8 m off the bow (a marker is judged where it is, not moved): the
     /// boat braked and turned away and fell 19 m behind its target.

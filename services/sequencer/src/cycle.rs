@@ -395,7 +395,7 @@ impl Sequencer {
     /// being followed, nor one within `followed_exempt_m` of the followed target or on its wake.
     /// Not extended objects nor any contact larger than `contact_max_extent_m`: shore and bank
     /// pieces do not move and the map holds them, and the classifier's extended class also takes
-    /// the 10-20 m patches of sun glint that live a few seconds, drift at 2-6 m/s and never reach
+    /// the 10-20 m patches of wave glint that live a few seconds, drift at 2-6 m/s and never reach
     /// the map's arc threshold (follow_boat's log: as contacts they swerved the boat off the
     /// target's track). Not a young track born close in (`late_birth_m`): a ghost until it lasts.
     /// Not a "channel marker" that drifts (`marker_max_speed_mps`): glint again. Not a young

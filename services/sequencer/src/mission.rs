@@ -461,7 +461,7 @@ const REACQUIRE_VELOCITY_MPS: f64 = 3.0;
 /// while it was predicted on its old course. Behind a boat followed from astern the tracker finds
 /// young tracks on the trail of map cells it leaves, which report 1-4 m/s for a 7 m/s boat and
 /// fall behind it; taken up with 3 m/s of slack they dragged the lock's velocity down until it
-/// took up a ghost beside the boat. Sun glint near a lost target drifts at a few m/s in about its
+/// took up a ghost beside the boat. Wave glint near a lost target drifts at a few m/s in about its
 /// direction.
 const REACQUIRE_SPEED_MPS: f64 = 1.5;
 /// Among those, the best has the least distance plus this many seconds times the velocity
@@ -1339,7 +1339,7 @@ mod tests {
         );
         assert_eq!(name, "follow #9");
         // A false alarm that stands still where the target went is not the target, nor is one
-        // drifting at 5 m/s in its direction (sun glint): it stays lost. A boat-class track at
+        // drifting at 5 m/s in its direction (wave glint): it stays lost. A boat-class track at
         // 5 m/s would still be taken (3 m/s of slack for a new track's velocity).
         let (d, name) = at(
             4 * S,

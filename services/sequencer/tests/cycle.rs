@@ -365,7 +365,7 @@ fn a_buoy_the_tracker_holds_blocks_arcs_before_the_map_confirms_it() {
     assert!(!status.arc_blocked(status.chosen_arc as usize));
     assert_eq!(cmd.mode, command_mode::NAVIGATING);
 
-    // A buoy's track may wobble at 1.5 m/s; a "marker" drifting at 4.5 m/s is sun glint, left to
+    // A buoy's track may wobble at 1.5 m/s; a "marker" drifting at 4.5 m/s is wave glint, left to
     // the map.
     for (speed, blocks) in [(1.5, true), (4.5, false)] {
         let mut moved = buoy;
@@ -392,7 +392,7 @@ fn a_buoy_the_tracker_holds_blocks_arcs_before_the_map_confirms_it() {
 #[test]
 fn shore_sized_and_extended_contacts_are_left_to_the_map_whatever_their_velocity() {
     // A 20 x 34 m blob of bank, "moving" at 6 m/s as it changes shape, across our course; a boat
-    // the same size; and a 10 x 8 m patch the classifier calls extended (sun glint) dead ahead.
+    // the same size; and a 10 x 8 m patch the classifier calls extended (wave glint) dead ahead.
     let mut bank = boat_contacts(100 * MS, [25.0, -25.0], [0.0, 6.0]);
     bank.contacts[0].class = contact_class::EXTENDED;
     bank.contacts[0].extent = [20.0, 34.0, 3.0];

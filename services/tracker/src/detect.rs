@@ -13,7 +13,7 @@
 //! A boat seen from astern at speed moves a few cells per frame, so even its newest cells carry
 //! one observation in the average of several and can stay below the guided threshold. Inside a
 //! window a cell therefore also joins from a lower hazard when its latest observation stood well
-//! above the water ([`GuideThresholds::lifted_height_cm`]): sun glint and wave crests lie flat,
+//! above the water ([`GuideThresholds::lifted_height_cm`]): wave glint and wave crests lie flat,
 //! a hull and a cabin do not.
 
 use messages::{GridGeometry, MapCell};
@@ -328,7 +328,7 @@ mod tests {
     fn guide_windows_lower_the_threshold_once_and_only_inside() {
         let grid = guide_test_grid();
         // Two equal strips of weak evidence (hazard 85 of 255, below the 128 threshold):
-        // a boat's path near (-5, 0) and sun glint near (5, 0).
+        // a boat's path near (-5, 0) and wave glint near (5, 0).
         let mut cells = vec![MapCell::default(); 800];
         for x in [8usize, 9, 10, 11, 12, 28, 29, 30, 31, 32] {
             cells[10 * 40 + x].hazard = 85;

@@ -12,6 +12,7 @@
 
 pub mod bench;
 pub mod classify;
+pub mod clutter;
 pub mod detect;
 pub mod eval;
 pub mod track;

@@ -4,6 +4,7 @@
 //! deletion after a coast limit.
 
 use crate::classify::Model;
+use crate::clutter::ClutterMap;
 use crate::detect::{DetectParams, Detection, Detector, GuideThresholds};
 use messages::{
     contact_class, Contact, ContactList, GridGeometry, Header, MapCell, WorldMapHeader,
@@ -50,12 +51,19 @@ pub struct TrackerConfig {
     pub confirm_window: u32,
     /// Detected `confirm_far_m` or more from the own vessel, a track is confirmed only after
     /// `confirm_far_hits` detections in its last `confirm_far_window` maps: far out a detection
-    /// says less (stereo range error grows with the square of range), and sun-glint mismatches,
-    /// which come and go from map to map, lie 40-70 m out. Off by default (infinite range); 40 m
-    /// with 5 of 8 is the measured setting.
+    /// says less (stereo range error grows with the square of range), and wave-glint mismatches,
+    /// which come and go from map to map, lie 40-70 m out. Off by default (infinite range): the
+    /// clutter map below applies the same rule only where the mismatches are.
     pub confirm_far_m: f64,
     pub confirm_far_hits: u32,
     pub confirm_far_window: u32,
+    /// Detected in a sector around the own vessel (10 deg of bearing from the bow, 20 m of
+    /// range) where at least this many detections a map went to no confirmed track, averaged
+    /// over `clutter_tau_s`, a track is confirmed on the far rule (`confirm_far_hits` of
+    /// `confirm_far_window`) too: stereo mismatches on the waves crowd into sectors set by how
+    /// the heads look at the waves (see [`crate::clutter`]). Infinite turns it off.
+    pub clutter_rate: f64,
+    pub clutter_tau_s: f64,
     /// A confirmed track is deleted after coasting as long as it had been seen (from birth to its
     /// last detection), but at least `min_coast_s` and at most `max_coast_s`. A track confirmed
     /// from a second of glint or wake is gone a moment after the glint; one that has held an
@@ -77,7 +85,7 @@ pub struct TrackerConfig {
     pub unobserved_max_coast_s: f64,
     pub unobserved_max_sigma_m: f64,
     /// A track is held so only if it was also detected in at least `unobserved_min_hits` of the
-    /// `unobserved_window` maps up to its last detection: sun glint, detected in about one map in
+    /// `unobserved_window` maps up to its last detection: wave glint, detected in about one map in
     /// three, is not carried out of view and predicted across the boat's path.
     pub unobserved_min_hits: u32,
     pub unobserved_window: u32,
@@ -122,6 +130,8 @@ impl Default for TrackerConfig {
             confirm_far_m: f64::INFINITY,
             confirm_far_hits: 5,
             confirm_far_window: 8,
+            clutter_rate: 0.1,
+            clutter_tau_s: 20.0,
             min_coast_s: 0.4,
             max_coast_s: 2.0,
             tentative_misses: 2,
@@ -198,6 +208,7 @@ pub struct Tracker {
     detections: Vec<Detection>,
     classes: Vec<(u8, f32)>,
     tracks: Vec<Track>,
+    clutter: ClutterMap,
     next_id: u32,
     last_stamp: Option<u64>,
 }
@@ -226,6 +237,12 @@ impl Tracker {
         }
         if cfg.confirm_far_m.is_nan() || cfg.confirm_far_m <= 0.0 {
             return bad("confirm_far_m must be > 0");
+        }
+        if cfg.clutter_rate.is_nan() || cfg.clutter_rate <= 0.0 {
+            return bad("clutter_rate must be > 0 (infinite turns it off)");
+        }
+        if !(cfg.clutter_tau_s.is_finite() && cfg.clutter_tau_s > 0.0) {
+            return bad("clutter_tau_s must be finite and > 0");
         }
         let positive = [
             cfg.accel_sigma,
@@ -269,6 +286,7 @@ impl Tracker {
             return bad("contact model is invalid");
         }
         Ok(Self {
+            clutter: ClutterMap::new(cfg.clutter_tau_s),
             cfg,
             model,
             detector: Detector::new(),
@@ -307,7 +325,8 @@ impl Tracker {
         let finite = g.resolution_m.is_finite()
             && g.resolution_m > 0.0
             && g.center.iter().all(|v| v.is_finite())
-            && hdr.vessel.position.iter().all(|v| v.is_finite());
+            && hdr.vessel.position.iter().all(|v| v.is_finite())
+            && hdr.vessel.yaw.is_finite();
         if !finite {
             return Err(TrackError::Geometry { seq });
         }
@@ -359,6 +378,7 @@ impl Tracker {
             self.classes.push(self.model.classify(d));
         }
         let own = Vector2::new(hdr.vessel.position[0], hdr.vessel.position[1]);
+        let yaw = hdr.vessel.yaw;
         let mut assigned = self.assign(own);
         self.assign_manoeuvring(&mut assigned, stamp);
         let nd = self.detections.len();
@@ -379,6 +399,9 @@ impl Tracker {
                 Some(di) => {
                     used[di] = true;
                     let d = &self.detections[di];
+                    if !t.confirmed && d.peak_hazard >= self.cfg.hazard_threshold {
+                        self.clutter.count(own, yaw, d.position);
+                    }
                     let r = measurement_noise(&self.cfg, own, d.position);
                     kalman_update(t, Vector2::new(d.position[0], d.position[1]), &r);
                     t.history |= 1;
@@ -393,7 +416,8 @@ impl Tracker {
                         t.class_score[class as usize % 5] += conf;
                         t.extent = [d.extent[0] as f32, d.extent[1] as f32, d.height as f32];
                     }
-                    let (hits, window) = confirm_rule(&self.cfg, own, d.position);
+                    let clutter = self.clutter.rate(own, yaw, d.position);
+                    let (hits, window) = confirm_rule(&self.cfg, own, d.position, clutter);
                     if (t.history & window_mask(window)).count_ones() >= hits {
                         t.confirmed = true;
                     }
@@ -462,6 +486,7 @@ impl Tracker {
             if fragment {
                 continue;
             }
+            self.clutter.count(own, yaw, d.position);
             let s2 = self.cfg.initial_speed_sigma.powi(2);
             let mut p = Matrix4::zeros();
             p.fixed_view_mut::<2, 2>(0, 0).copy_from(&r);
@@ -480,12 +505,19 @@ impl Tracker {
                 misses: 0,
                 unobserved_ns: 0,
                 recent_hits: 1,
-                confirmed: confirm_rule(&self.cfg, own, d.position).0 <= 1,
+                confirmed: confirm_rule(
+                    &self.cfg,
+                    own,
+                    d.position,
+                    self.clutter.rate(own, yaw, d.position),
+                )
+                .0 <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
             });
             self.next_id = self.next_id.wrapping_add(1).max(1);
         }
+        self.clutter.end_map(dt);
         self.write(stamp, hdr.hdr.seq, source, out);
         Ok(())
     }
@@ -700,10 +732,16 @@ fn window_mask(window: u32) -> u32 {
     }
 }
 
-/// (hits, window) that confirm a track detected at `position`, seen from `own`.
-fn confirm_rule(cfg: &TrackerConfig, own: Vector2<f64>, position: [f64; 2]) -> (u32, u32) {
+/// (hits, window) that confirm a track detected at `position`, seen from `own`, in a sector with
+/// `clutter` unexplained detections a map.
+fn confirm_rule(
+    cfg: &TrackerConfig,
+    own: Vector2<f64>,
+    position: [f64; 2],
+    clutter: f32,
+) -> (u32, u32) {
     let range = (Vector2::new(position[0], position[1]) - own).norm();
-    if range >= cfg.confirm_far_m {
+    if range >= cfg.confirm_far_m || clutter as f64 >= cfg.clutter_rate {
         (cfg.confirm_far_hits, cfg.confirm_far_window)
     } else {
         (cfg.confirm_hits, cfg.confirm_window)

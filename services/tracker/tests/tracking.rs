@@ -144,6 +144,13 @@ fn the_tracker_is_deterministic_and_rejects_bad_maps() {
         .update(&hdr, &vec![MapCell::default(); 1599], "t", &mut list)
         .unwrap_err();
     assert!(e.to_string().contains("1599 cells for a 40x40 grid"), "{e}");
+    // A NaN heading (a broken INS) would place every detection in the clutter map's first sector.
+    let mut no_heading = hdr;
+    no_heading.vessel.yaw = f64::NAN;
+    let e = t
+        .update(&no_heading, &vec![MapCell::default(); 1600], "t", &mut list)
+        .unwrap_err();
+    assert!(e.to_string().contains("invalid geometry or pose"), "{e}");
     t.update(&hdr, &vec![MapCell::default(); 1600], "t", &mut list)
         .unwrap();
     assert!(
@@ -328,7 +335,7 @@ fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
     let mut list = Box::<ContactList>::default();
     // 2 s of a boat at 7 m/s as in the test above, then 4 s of open-water background: every cell
     // at hazard 90 (below the guided threshold) and scattered single cells at 120 (above it, but
-    // too small to stand for a boat on their own), reshuffled every frame like sun glint.
+    // too small to stand for a boat on their own), reshuffled every frame like wave glint.
     let mut seed = 12345u32;
     for k in 0..30u64 {
         let mut cells = open_water(&grid);
@@ -432,6 +439,16 @@ fn an_inconsistent_configuration_is_refused_with_the_reason() {
         ..TrackerConfig::default()
     });
     assert!(e.contains("guided_lifted_height_m must be within"), "{e}");
+    let e = refused(TrackerConfig {
+        clutter_rate: f64::NAN,
+        ..TrackerConfig::default()
+    });
+    assert!(e.contains("clutter_rate must be > 0"), "{e}");
+    let e = refused(TrackerConfig {
+        clutter_tau_s: 0.0,
+        ..TrackerConfig::default()
+    });
+    assert!(e.contains("clutter_tau_s must be finite and > 0"), "{e}");
 }
 
 #[test]
@@ -442,7 +459,7 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     let confirmed_near = |list: &ContactList, at| confirmed_near(list, at, 1.0);
     // 5 Hz maps. A moored boat at (-20, 20) seen for 3.2 s and then missed for 0.8 s (as an object
     // at the edge of the view is), glint at (-20, -20) for 0.6 s at the end of it, and a flicker
-    // at (-35, -5) in the first four maps and then one in three, as sun glint is seen. Then for
+    // at (-35, -5) in the first four maps and then one in three, as wave glint is seen. Then for
     // 10 s the heads look east only: the west half of the map is unobserved. Then they see the
     // west again, open water without the boat.
     let (moored, glint, flicker) = ([-20.0, 20.0], [-20.0, -20.0], [-35.0, -5.0]);
@@ -526,4 +543,86 @@ fn far_out_a_track_needs_more_sightings_before_it_is_confirmed() {
         assert_eq!(confirmed_near(&list, far_steady), k >= 4, "map {k}");
         assert!(!confirmed_near(&list, far_flicker), "map {k}");
     }
+}
+
+/// Runs 30 s of 5 Hz maps, the vessel at the origin heading east, with one speck of stereo clutter
+/// a map somewhere 40-58 m out 41-49 deg to starboard; from map 100 a hull seen every other map
+/// and one seen in every map in that sector, and a hull seen every other map in the mirror sector
+/// to port. Returns the first map each of them was confirmed in, in that order.
+fn clutter_run(cfg: TrackerConfig) -> [Option<u64>; 3] {
+    let mut t = Tracker::new(cfg, model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let polar = |range: f64, bearing_deg: f64| {
+        let b = bearing_deg.to_radians();
+        [range * b.cos(), range * b.sin()]
+    };
+    let hot_flicker = polar(55.0, -48.0);
+    let hot_steady = polar(45.0, -42.0);
+    let clean_flicker = polar(55.0, 48.0);
+    let objects = [hot_flicker, hot_steady, clean_flicker];
+    let mut first = [None; 3];
+    let mut seed = 12345u64;
+    let mut unit = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for k in 0..150u64 {
+        let mut cells = open_water(&grid);
+        let speck = loop {
+            let p = polar(40.0 + 18.0 * unit(), -41.0 - 8.0 * unit());
+            if objects
+                .iter()
+                .all(|o| (p[0] - o[0]).hypot(p[1] - o[1]) > 5.0)
+            {
+                break p;
+            }
+        };
+        let (col, row) = grid.cell_of(speck[0], speck[1]).unwrap();
+        cells[(row * grid.width + col) as usize] = MapCell {
+            hazard: 200,
+            max_height_cm: 80,
+            observed: 3,
+            ..Default::default()
+        };
+        if k >= 100 {
+            if k % 2 == 0 {
+                paint_hull_rim(&grid, &mut cells, hot_flicker, [0.0, 1.0], 150);
+                paint_hull_rim(&grid, &mut cells, clean_flicker, [0.0, 1.0], 150);
+            }
+            paint_hull_rim(&grid, &mut cells, hot_steady, [0.0, 1.0], 150);
+        }
+        t.update(
+            &map_header(grid, k, 200_000_000),
+            &cells,
+            "tracker",
+            &mut list,
+        )
+        .unwrap();
+        for (f, o) in first.iter_mut().zip(objects) {
+            if k >= 100 && f.is_none() && confirmed_near(&list, o, 2.0).is_some() {
+                *f = Some(k);
+            }
+        }
+    }
+    first
+}
+
+#[test]
+fn where_stereo_clutter_crowds_a_track_needs_more_sightings_and_elsewhere_it_does_not() {
+    let [hot_flicker, hot_steady, clean_flicker] = clutter_run(TrackerConfig::default());
+    // In the cluttered sector a hull seen in every other map is never confirmed, and one seen in
+    // every map takes 5 maps instead of 3.
+    assert_eq!(hot_flicker, None);
+    assert_eq!(hot_steady, Some(104));
+    // In the clean sector 3 sightings in 5 maps still confirm.
+    assert_eq!(clean_flicker, Some(104));
+    // Without the clutter map the flicker in the cluttered sector is confirmed like the clean one.
+    let off = TrackerConfig {
+        clutter_rate: f64::INFINITY,
+        ..TrackerConfig::default()
+    };
+    assert_eq!(clutter_run(off), [Some(104), Some(102), Some(104)]);
 }
