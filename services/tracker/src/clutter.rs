@@ -2,8 +2,8 @@
 //! sector around the own vessel (bearing from the bow, range ring), exponentially averaged.
 //!
 //! Why vessel-relative: the stereo mismatches that make false detections depend on how the heads
-//! look at the waves (measured on follow_boat: far water on one head's outer side gave about 10 %
-//! hazard cells a map, on the other side 0.4 %, and the two swapped with the wave direction), so
+//! look at the waves (measured on follow_boat: far water on one head's side gave 8-11 % hazard
+//! cells a map, on the other side 0.2-1.4 %, and the pattern moved with the wave direction), so
 //! they stay at a bearing from the bow while the vessel moves. A world-anchored map would smear
 //! them along the track and never learn them.
 //!
@@ -83,8 +83,8 @@ mod tests {
     fn a_sector_with_detections_every_map_learns_its_rate_and_others_stay_clean() {
         let mut m = ClutterMap::new(10.0);
         let own = Vector2::new(100.0, -50.0);
-        let yaw = 90f64.to_radians(); // north
-                                      // 45 m out, 45 deg to starboard of the bow (north-east of the vessel).
+        // Heading north; 45 m out, 45 deg to starboard of the bow (north-east of the vessel).
+        let yaw = 90f64.to_radians();
         let hot = [
             own.x + 45.0 * 45f64.to_radians().cos(),
             own.y + 45.0 * 45f64.to_radians().sin(),

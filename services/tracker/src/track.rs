@@ -416,8 +416,8 @@ impl Tracker {
                         t.class_score[class as usize % 5] += conf;
                         t.extent = [d.extent[0] as f32, d.extent[1] as f32, d.height as f32];
                     }
-                    let clutter = self.clutter.rate(own, yaw, d.position);
-                    let (hits, window) = confirm_rule(&self.cfg, own, d.position, clutter);
+                    let (hits, window) =
+                        confirm_rule(&self.cfg, &self.clutter, own, yaw, d.position);
                     if (t.history & window_mask(window)).count_ones() >= hits {
                         t.confirmed = true;
                     }
@@ -505,13 +505,7 @@ impl Tracker {
                 misses: 0,
                 unobserved_ns: 0,
                 recent_hits: 1,
-                confirmed: confirm_rule(
-                    &self.cfg,
-                    own,
-                    d.position,
-                    self.clutter.rate(own, yaw, d.position),
-                )
-                .0 <= 1,
+                confirmed: confirm_rule(&self.cfg, &self.clutter, own, yaw, d.position).0 <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
             });
@@ -732,16 +726,17 @@ fn window_mask(window: u32) -> u32 {
     }
 }
 
-/// (hits, window) that confirm a track detected at `position`, seen from `own`, in a sector with
-/// `clutter` unexplained detections a map.
+/// (hits, window) that confirm a track detected at `position`, seen from `own` heading `yaw`:
+/// the strict pair far out or where `clutter` holds the sector for cluttered.
 fn confirm_rule(
     cfg: &TrackerConfig,
+    clutter: &ClutterMap,
     own: Vector2<f64>,
+    yaw: f64,
     position: [f64; 2],
-    clutter: f32,
 ) -> (u32, u32) {
     let range = (Vector2::new(position[0], position[1]) - own).norm();
-    if range >= cfg.confirm_far_m || clutter as f64 >= cfg.clutter_rate {
+    if range >= cfg.confirm_far_m || clutter.rate(own, yaw, position) as f64 >= cfg.clutter_rate {
         (cfg.confirm_far_hits, cfg.confirm_far_window)
     } else {
         (cfg.confirm_hits, cfg.confirm_window)
