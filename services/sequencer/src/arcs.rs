@@ -17,6 +17,7 @@
 //! Rotation adds up to half a table cell diagonal of lookup error and a hazard may lie anywhere in its
 //! map cell; both are covered by sweeping each corridor one map-cell diagonal wider.
 
+use crate::wake::distance_to_polyline;
 use messages::{GridGeometry, MapCell};
 use serde::Deserialize;
 use std::f64::consts::PI;
@@ -94,13 +95,15 @@ pub struct ArcConfig {
     /// 4.5 m/s, blocked every arc 8 m off the bow (a marker is judged where it is, not moved): the
     /// boat braked and turned away and fell 19 m behind its target.
     pub marker_max_speed_mps: f64,
-    /// While following, map hazards up to this far (m) astern of the target's centre and within
-    /// `followed_exempt_m / 2` of its track line are its wake and the cells its hull left: the
-    /// map's 3-observation average and hazard decay hold them about a second. In follow_boat's
-    /// log such cells 9 m astern of a 7 m/s target's centre, outside the 8 m disc, blocked every
-    /// arc for 2.4 s: the boat braked, turned away and fell 14 m behind. The water the target
-    /// has just crossed holds nothing solid; the lane is kept short, as a turning target's course
-    /// line soon leaves the water it went over.
+    /// While following, map hazards within `followed_exempt_m / 2` of the last this many metres
+    /// of the target's path ([`crate::wake::WakeTrail`]) are its wake and the cells its hull left:
+    /// the map's 3-observation average and hazard decay hold them a second or more, and the wake
+    /// itself can read as a hazard for seconds. In follow_boat's log such cells 9 m astern of a
+    /// 7 m/s target's centre, outside the 8 m disc, blocked every arc for 2.4 s: the boat braked,
+    /// turned away and fell 14 m behind; with a 12 m lane, a wake cell 0.7 m high, lethal for 4 s,
+    /// fell out of it 6 m off the own bow and did the same. 20 m, the usual follow distance,
+    /// reaches back to the own bow. It is the path the target took, not a straight lane astern:
+    /// a lane along a turning target's course sweeps water it never went over.
     pub followed_wake_map_m: f64,
     /// A track younger than this (s) that is coasting (not detected in the latest map) blocks no
     /// arc: a real boat or buoy is seen from 65 m and held frame after frame, while glint tracks
@@ -135,7 +138,7 @@ impl Default for ArcConfig {
             late_birth_m: 20.0,
             late_birth_min_age_s: 3.0,
             marker_max_speed_mps: 2.0,
-            followed_wake_map_m: 12.0,
+            followed_wake_map_m: 20.0,
             young_coasting_max_age_s: 6.0,
         }
     }
@@ -263,30 +266,25 @@ impl Blocked {
 
 /// A part of the world whose hazards block no arc: a disc (ENU centre, radius in m) over the hull
 /// of the boat being followed, which the follow behaviour keeps its distance from by itself, and a
-/// lane astern of it along its course, the cells its hull and wash left that the map still holds.
-/// Without the disc every arc longer than the follow distance runs into the target, and the boat
-/// weaves beside its wake.
+/// band along its trail, the water it has just crossed, whose cells its hull and wash left and the
+/// map still holds ([`crate::wake::WakeTrail`]). Without the disc every arc longer than the follow
+/// distance runs into the target, and the boat weaves beside its wake.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Exempt {
+pub struct Exempt<'a> {
     pub centre: [f64; 2],
     pub radius_m: f64,
-    /// Course of the target (rad, ENU): the lane runs astern from `centre` against it ...
-    pub course: f64,
-    /// ... this far (m) ...
-    pub lane_length_m: f64,
-    /// ... this far (m) either side of the track line.
-    pub lane_half_width_m: f64,
+    /// The target's recent positions (ENU), newest first ...
+    pub trail: &'a [[f64; 2]],
+    /// ... and how far (m) either side of them the band reaches.
+    pub trail_half_width_m: f64,
 }
 
-impl Exempt {
-    /// Whether a hazard at `offset` (m, ENU) from the disc's centre lies in the disc or the lane.
-    fn covers(&self, offset: [f64; 2]) -> bool {
-        let [dx, dy] = offset;
-        let (s, c) = self.course.sin_cos();
-        let astern = -(dx * c + dy * s);
-        let across = (-dx * s + dy * c).abs();
+impl Exempt<'_> {
+    /// Whether a hazard at `position` (m, ENU) lies in the disc or on the trail.
+    fn covers(&self, position: [f64; 2]) -> bool {
+        let (dx, dy) = (position[0] - self.centre[0], position[1] - self.centre[1]);
         dx * dx + dy * dy < self.radius_m * self.radius_m
-            || ((0.0..=self.lane_length_m).contains(&astern) && across <= self.lane_half_width_m)
+            || distance_to_polyline(position, self.trail) <= self.trail_half_width_m
     }
 }
 
@@ -562,12 +560,10 @@ impl ArcSet {
     ) -> Blocked {
         let (s, c) = yaw.sin_cos();
         let (ox, oy) = (origin[0] - vessel[0], origin[1] - vessel[1]);
-        // The exempt centre relative to the vessel, like the hazards below.
-        let exempt = exempt.map(|e| (e, [e.centre[0] - vessel[0], e.centre[1] - vessel[1]]));
         let mut out = Blocked::default();
         for h in hazards {
             let (dx, dy) = (h[0] as f64 + ox, h[1] as f64 + oy);
-            if exempt.is_some_and(|(e, [ex, ey])| e.covers([dx - ex, dy - ey])) {
+            if exempt.is_some_and(|e| e.covers([vessel[0] + dx, vessel[1] + dy])) {
                 continue;
             }
             // World offset -> body frame (rotate by -yaw).
@@ -883,9 +879,8 @@ mod tests {
         let exempt = Some(Exempt {
             centre: [0.0, 24.0],
             radius_m: 8.0,
-            course: yaw,
-            lane_length_m: 0.0,
-            lane_half_width_m: 0.0,
+            trail: &[],
+            trail_half_width_m: 4.0,
         });
         let b = set.blocked_except(&hazards, g.center, [0.0, 0.0], yaw, exempt);
         for s in straight_arcs(&set) {
@@ -905,18 +900,18 @@ mod tests {
     }
 
     #[test]
-    fn the_cells_a_followed_boat_left_astern_block_no_arc_beside_its_lane_they_do() {
+    fn the_cells_a_followed_boat_left_on_its_trail_block_no_arc_beside_it_they_do() {
         let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
         let g = grid(200, 0.5);
         let yaw = PI / 2.0;
-        // The target's centre 21 m ahead (the vessel heads north, so does the target); cells its
-        // hull left 9-10 m astern of it, 12 m ahead of the vessel, outside the 8 m disc.
+        // The vessel heads north; the target, 21 m ahead, came up from 3 m to starboard of the
+        // vessel's track and turned onto it 8 m ahead of the vessel (its trail, newest first).
+        let trail = [[0.0, 21.0], [0.0, 14.0], [0.0, 8.0], [3.0, 2.0], [3.0, -4.0]];
         let exempt = Exempt {
             centre: [0.0, 21.0],
             radius_m: 8.0,
-            course: yaw,
-            lane_length_m: 12.0,
-            lane_half_width_m: 4.0,
+            trail: &trail,
+            trail_half_width_m: 4.0,
         };
         let blocked = |cells: &[(f64, f64)], exempt: Option<Exempt>| {
             let mut map = free_map(200);
@@ -928,20 +923,23 @@ mod tests {
             set.blocked_except(&hazards, g.center, [0.0, 0.0], yaw, exempt)
                 .mask
         };
-        let left = [(0.5, 11.0), (-0.5, 12.0)];
-        assert_ne!(blocked(&left, None), 0, "the cells block without the lane");
-        let no_lane = Exempt {
-            lane_length_m: 0.0,
+        // Cells its hull left 9-10 m astern of it and 6 m off the own bow, outside the 8 m disc.
+        let left = [(0.5, 11.0), (-0.5, 12.0), (1.5, 6.0)];
+        assert_ne!(blocked(&left, None), 0, "the cells block without the trail");
+        let disc_only = Exempt {
+            trail: &[],
             ..exempt
         };
-        assert_ne!(blocked(&left, Some(no_lane)), 0, "outside the disc alone");
-        assert_eq!(blocked(&left, Some(exempt)), 0, "in the lane");
-        // Beside the lane, or astern of its end, a hazard still blocks.
-        assert_ne!(blocked(&[(5.0, 12.0)], Some(exempt)), 0, "beside the lane");
+        assert_ne!(blocked(&left, Some(disc_only)), 0, "outside the disc alone");
+        assert_eq!(blocked(&left, Some(exempt)), 0, "on the trail");
+        // Beside the trail a hazard still blocks: 4.9 m to port of where the target went, which a
+        // straight lane 20 m astern along its course, 4 m either side, would cover ...
+        assert_ne!(blocked(&[(-3.5, 4.0)], Some(exempt)), 0, "beside the trail");
+        // ... and beyond the trail's end.
         assert_ne!(
-            blocked(&[(0.0, 8.0)], Some(exempt)),
+            blocked(&[(-1.0, 3.0)], Some(Exempt { trail: &trail[..3], ..exempt })),
             0,
-            "astern of the lane"
+            "astern of the trail"
         );
     }
 

@@ -8,6 +8,7 @@ use crate::arcs::{
 };
 use crate::control::{self, ControlConfig, Controller, Guidance, OwnState};
 use crate::mission::{Directive, Mission, MissionError, Runner, World};
+use crate::wake::WakeTrail;
 use crate::watchdog::{self, Watchdog, WatchdogConfig};
 use messages::{
     command_mode, contact_class, mission_action, ActuatorCommand, ContactList, FixedStr, Header,
@@ -102,6 +103,8 @@ pub struct Sequencer {
     moving: Vec<MovingObstacle>,
     /// Per contact id: whether its track was born within `arcs.late_birth_m` of the vessel.
     late_births: HashMap<u32, bool>,
+    /// Where the followed target went: its wake, which blocks no arc.
+    wake_trail: WakeTrail,
     watchdog: Watchdog,
     runner: Runner,
     controller: Controller,
@@ -122,6 +125,7 @@ impl Sequencer {
             contacts: Box::default(),
             moving: Vec::new(),
             late_births: HashMap::new(),
+            wake_trail: WakeTrail::default(),
             watchdog: Watchdog::new(&cfg.watchdog),
             runner: Runner::new(cfg.control.max_speed_mps),
             controller: Controller::default(),
@@ -314,12 +318,17 @@ impl Sequencer {
                     }),
                     _ => None,
                 };
+                let cfg = self.arcs.config();
+                self.wake_trail.update(
+                    target.map(|t| t.position),
+                    cfg.followed_wake_map_m,
+                    cfg.followed_exempt_m,
+                );
                 let exempt = target.map(|t| Exempt {
                     centre: t.position,
-                    radius_m: self.arcs.config().followed_exempt_m,
-                    course: t.course,
-                    lane_length_m: self.arcs.config().followed_wake_map_m,
-                    lane_half_width_m: 0.5 * self.arcs.config().followed_exempt_m,
+                    radius_m: cfg.followed_exempt_m,
+                    trail: self.wake_trail.points(),
+                    trail_half_width_m: 0.5 * cfg.followed_exempt_m,
                 });
                 let mut blocked = self.arcs.blocked_except(
                     &self.hazards,

@@ -5,6 +5,7 @@
 //!
 //! - [`mission`]: mission files and their execution.
 //! - [`arcs`]: the arc set, its lookup table and the per-cycle blocked set.
+//! - [`wake`]: the followed target's recent path, whose map cells block no arc.
 //! - [`control`]: guidance and the heading/speed PIDs with actuator limits.
 //! - [`watchdog`]: stale-input detection in stream time.
 //! - [`cycle`]: all of it as one object, one cycle per call.
@@ -15,6 +16,7 @@ pub mod bench;
 pub mod control;
 pub mod cycle;
 pub mod mission;
+pub mod wake;
 pub mod watchdog;
 
 pub use cycle::{Config, CycleOn, Sequencer};
