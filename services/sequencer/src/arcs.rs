@@ -906,7 +906,13 @@ mod tests {
         let yaw = PI / 2.0;
         // The vessel heads north; the target, 21 m ahead, came up from 3 m to starboard of the
         // vessel's track and turned onto it 8 m ahead of the vessel (its trail, newest first).
-        let trail = [[0.0, 21.0], [0.0, 14.0], [0.0, 8.0], [3.0, 2.0], [3.0, -4.0]];
+        let trail = [
+            [0.0, 21.0],
+            [0.0, 14.0],
+            [0.0, 8.0],
+            [3.0, 2.0],
+            [3.0, -4.0],
+        ];
         let exempt = Exempt {
             centre: [0.0, 21.0],
             radius_m: 8.0,
@@ -937,7 +943,13 @@ mod tests {
         assert_ne!(blocked(&[(-3.5, 4.0)], Some(exempt)), 0, "beside the trail");
         // ... and beyond the trail's end.
         assert_ne!(
-            blocked(&[(-1.0, 3.0)], Some(Exempt { trail: &trail[..3], ..exempt })),
+            blocked(
+                &[(-1.0, 3.0)],
+                Some(Exempt {
+                    trail: &trail[..3],
+                    ..exempt
+                })
+            ),
             0,
             "astern of the trail"
         );

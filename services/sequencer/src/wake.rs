@@ -36,7 +36,12 @@ impl WakeTrail {
         // Keep the first crumb at or beyond `length_m` of path so the trail spans all of it.
         let mut path = 0.0;
         let mut keep = self.crumbs.len();
-        for (k, w) in self.crumbs.iter().zip(self.crumbs.iter().skip(1)).enumerate() {
+        for (k, w) in self
+            .crumbs
+            .iter()
+            .zip(self.crumbs.iter().skip(1))
+            .enumerate()
+        {
             path += dist(*w.0, *w.1);
             if path >= length_m {
                 keep = k + 2;

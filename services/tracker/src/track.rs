@@ -381,6 +381,7 @@ impl Tracker {
         let yaw = hdr.vessel.yaw;
         let mut assigned = self.assign(own);
         self.assign_manoeuvring(&mut assigned, stamp);
+        self.prefer_hull_to_smear(&mut assigned, stamp);
         let nd = self.detections.len();
         let mut used = vec![false; nd];
         let coast_ns = |s: f64| (s * 1e9) as u64;
@@ -632,6 +633,52 @@ impl Tracker {
             if let Some((di, _)) = nearest {
                 assigned[ti] = Some(di);
                 taken[di] = true;
+            }
+        }
+    }
+
+    /// A guided track held this map only by a weak component (the smear of the frames the map
+    /// still averages) takes instead a strong, unassigned detection ahead of that component, as
+    /// far as a hull length beyond its guide window: the boat itself, out of the smear. In
+    /// follow_boat's log the target turned 29 degrees in 2 s; its track, fed by the smear that
+    /// lags a moving boat in the map, slid 7 m astern of the hull, the hull's own detection
+    /// started a new track, the old one coasted on to its death and the follower, taking its
+    /// prediction 12 m short of the target for the target, stopped and lost it. Channel markers
+    /// are left out: a boat passing a buoy must not jump onto it.
+    fn prefer_hull_to_smear(&self, assigned: &mut [Option<usize>], stamp: u64) {
+        let thr = self.cfg.hazard_threshold;
+        let mut taken = vec![false; self.detections.len()];
+        for di in assigned.iter().flatten() {
+            taken[*di] = true;
+        }
+        for (ti, t) in self.tracks.iter().enumerate() {
+            let Some(weak) = assigned[ti] else { continue };
+            if !guided(t) || self.detections[weak].peak_hazard >= thr {
+                continue;
+            }
+            let from = self.detections[weak].position;
+            let velocity = [t.x[2], t.x[3]];
+            let length = (t.extent[0].max(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M);
+            let reach = guide_radius(t, self.cfg.guide_margin_m, stamp) + length;
+            let hull = self
+                .detections
+                .iter()
+                .enumerate()
+                .filter(|&(di, d)| {
+                    let ahead = (d.position[0] - from[0]) * velocity[0]
+                        + (d.position[1] - from[1]) * velocity[1];
+                    !taken[di]
+                        && d.peak_hazard >= thr
+                        && self.classes[di].0 != contact_class::CHANNEL_MARKER
+                        && ahead > 0.0
+                })
+                .map(|(di, d)| (di, (d.position[0] - t.x[0]).hypot(d.position[1] - t.x[1])))
+                .filter(|&(_, dist)| dist <= reach)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((di, _)) = hull {
+                taken[weak] = false;
+                taken[di] = true;
+                assigned[ti] = Some(di);
             }
         }
     }

@@ -329,6 +329,70 @@ fn a_boat_that_turns_while_mapped_weakly_keeps_its_track_and_its_new_course() {
 }
 
 #[test]
+fn a_turning_boat_whose_smear_drags_its_track_astern_is_taken_up_by_its_hull_ahead() {
+    // 7 m/s north, fully mapped for 2 s; then it turns 30 degrees to port within 1 s while the
+    // averaged map holds it only as a weak smear that lags farther behind it every other map
+    // (as the world map does to a boat that turns). From 4 s the hull maps strongly again, 7 m
+    // ahead of its smear.
+    let track_of = |hull_over_smear: bool| {
+        let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+        let grid = grid_100m();
+        let mut list = Box::<ContactList>::default();
+        let mut path = vec![([0.0f64, -30.0f64], 90f64.to_radians())];
+        let mut first = 0;
+        for k in 1..30usize {
+            let (pos, mut course) = path[k - 1];
+            if (10..15).contains(&k) {
+                course += 6f64.to_radians();
+            }
+            path.push((
+                [pos[0] + 1.4 * course.cos(), pos[1] + 1.4 * course.sin()],
+                course,
+            ));
+            let mut cells = open_water(&grid);
+            let mut paint = |(p, c): ([f64; 2], f64), hazard| {
+                paint_hull_rim(&grid, &mut cells, p, [c.cos(), c.sin()], hazard)
+            };
+            if k < 10 {
+                paint(path[k], 150);
+            } else {
+                paint(path[k - (k - 9) / 2], 100);
+                if k >= 20 && hull_over_smear {
+                    paint(path[k], 150);
+                }
+            }
+            let hdr = map_header(grid, k as u64, 200_000_000);
+            t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+            if k == 9 {
+                first = list
+                    .as_slice()
+                    .iter()
+                    .find(|c| c.confirmed == 1)
+                    .unwrap()
+                    .id;
+            }
+        }
+        let confirmed: Vec<Contact> = list
+            .as_slice()
+            .iter()
+            .filter(|c| c.confirmed == 1)
+            .copied()
+            .collect();
+        (confirmed, first, path[29].0)
+    };
+    let (confirmed, first, hull) = track_of(true);
+    assert_eq!(confirmed.len(), 1, "{confirmed:?}");
+    let c = confirmed[0];
+    assert_eq!(c.id, first, "the track was not kept");
+    let error = (c.position[0] - hull[0]).hypot(c.position[1] - hull[1]);
+    assert!(error < 2.5, "{error:.1} m off the hull");
+    // The smear alone holds the track 10 m astern: the hull's detection is what moves it.
+    let (confirmed, _, _) = track_of(false);
+    let lag = (confirmed[0].position[0] - hull[0]).hypot(confirmed[0].position[1] - hull[1]);
+    assert!(lag > 6.0, "{lag:.1} m");
+}
+
+#[test]
 fn a_track_whose_boat_is_gone_does_not_walk_on_over_weak_background() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
     let grid = grid_100m();
