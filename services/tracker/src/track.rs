@@ -638,8 +638,10 @@ impl Tracker {
     }
 
     /// A guided track held this map only by a weak component (the smear of the frames the map
-    /// still averages) takes instead a strong, unassigned detection ahead of that component, as
-    /// far as a hull length beyond its guide window: the boat itself, out of the smear. In
+    /// still averages) takes instead a strong, unassigned detection ahead of both that component
+    /// and its own prediction, as far as a hull length beyond its guide window: the boat itself,
+    /// out of the smear. Never one astern of the prediction: what lies there is the boat's wake
+    /// or a follower's bow wave, not its hull. In
     /// follow_boat's log the target turned 29 degrees in 2 s; its track, fed by the smear that
     /// lags a moving boat in the map, slid 7 m astern of the hull, the hull's own detection
     /// started a new track, the old one coasted on to its death and the follower, taking its
@@ -665,12 +667,15 @@ impl Tracker {
                 .iter()
                 .enumerate()
                 .filter(|&(di, d)| {
-                    let ahead = (d.position[0] - from[0]) * velocity[0]
-                        + (d.position[1] - from[1]) * velocity[1];
+                    let ahead_of = |p: [f64; 2]| {
+                        (d.position[0] - p[0]) * velocity[0] + (d.position[1] - p[1]) * velocity[1]
+                            > 0.0
+                    };
                     !taken[di]
                         && d.peak_hazard >= thr
                         && self.classes[di].0 != contact_class::CHANNEL_MARKER
-                        && ahead > 0.0
+                        && ahead_of(from)
+                        && ahead_of([t.x[0], t.x[1]])
                 })
                 .map(|(di, d)| (di, (d.position[0] - t.x[0]).hypot(d.position[1] - t.x[1])))
                 .filter(|&(_, dist)| dist <= reach)
