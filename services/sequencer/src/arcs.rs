@@ -17,7 +17,7 @@
 //! Rotation adds up to half a table cell diagonal of lookup error and a hazard may lie anywhere in its
 //! map cell; both are covered by sweeping each corridor one map-cell diagonal wider.
 
-use crate::wake::distance_to_polyline;
+use crate::wake::Band;
 use messages::{GridGeometry, MapCell};
 use serde::Deserialize;
 use std::f64::consts::PI;
@@ -273,18 +273,15 @@ impl Blocked {
 pub struct Exempt<'a> {
     pub centre: [f64; 2],
     pub radius_m: f64,
-    /// The target's recent positions (ENU), newest first ...
-    pub trail: &'a [[f64; 2]],
-    /// ... and how far (m) either side of them the band reaches.
-    pub trail_half_width_m: f64,
+    /// The water along the target's recent positions (ENU).
+    pub trail: Band<'a>,
 }
 
 impl Exempt<'_> {
     /// Whether a hazard at `position` (m, ENU) lies in the disc or on the trail.
     fn covers(&self, position: [f64; 2]) -> bool {
         let (dx, dy) = (position[0] - self.centre[0], position[1] - self.centre[1]);
-        dx * dx + dy * dy < self.radius_m * self.radius_m
-            || distance_to_polyline(position, self.trail) <= self.trail_half_width_m
+        dx * dx + dy * dy < self.radius_m * self.radius_m || self.trail.contains(position)
     }
 }
 
@@ -879,8 +876,7 @@ mod tests {
         let exempt = Some(Exempt {
             centre: [0.0, 24.0],
             radius_m: 8.0,
-            trail: &[],
-            trail_half_width_m: 4.0,
+            trail: Band::empty(),
         });
         let b = set.blocked_except(&hazards, g.center, [0.0, 0.0], yaw, exempt);
         for s in straight_arcs(&set) {
@@ -916,8 +912,7 @@ mod tests {
         let exempt = Exempt {
             centre: [0.0, 21.0],
             radius_m: 8.0,
-            trail: &trail,
-            trail_half_width_m: 4.0,
+            trail: Band::new(&trail, 4.0),
         };
         let blocked = |cells: &[(f64, f64)], exempt: Option<Exempt>| {
             let mut map = free_map(200);
@@ -933,7 +928,7 @@ mod tests {
         let left = [(0.5, 11.0), (-0.5, 12.0), (1.5, 6.0)];
         assert_ne!(blocked(&left, None), 0, "the cells block without the trail");
         let disc_only = Exempt {
-            trail: &[],
+            trail: Band::empty(),
             ..exempt
         };
         assert_ne!(blocked(&left, Some(disc_only)), 0, "outside the disc alone");
@@ -946,7 +941,7 @@ mod tests {
             blocked(
                 &[(-1.0, 3.0)],
                 Some(Exempt {
-                    trail: &trail[..3],
+                    trail: Band::new(&trail[..3], 4.0),
                     ..exempt
                 })
             ),

@@ -8,7 +8,7 @@ use crate::arcs::{
 };
 use crate::control::{self, ControlConfig, Controller, Guidance, OwnState};
 use crate::mission::{Directive, Mission, MissionError, Runner, World};
-use crate::wake::WakeTrail;
+use crate::wake::{Band, WakeTrail};
 use crate::watchdog::{self, Watchdog, WatchdogConfig};
 use messages::{
     command_mode, contact_class, mission_action, ActuatorCommand, ContactList, FixedStr, Header,
@@ -327,8 +327,7 @@ impl Sequencer {
                 let exempt = target.map(|t| Exempt {
                     centre: t.position,
                     radius_m: cfg.followed_exempt_m,
-                    trail: self.wake_trail.points(),
-                    trail_half_width_m: 0.5 * cfg.followed_exempt_m,
+                    trail: Band::new(self.wake_trail.points(), 0.5 * cfg.followed_exempt_m),
                 });
                 let mut blocked = self.arcs.blocked_except(
                     &self.hazards,

@@ -51,9 +51,48 @@ impl WakeTrail {
         self.crumbs.truncate(keep);
     }
 
-    /// The trail, newest first, contiguous for [`crate::arcs::Exempt::trail`].
+    /// The trail, newest first, contiguous for a [`Band`].
     pub fn points(&mut self) -> &[[f64; 2]] {
         self.crumbs.make_contiguous()
+    }
+}
+
+/// The water within `half_width_m` of a polyline, with its bounding box so that the many hazards
+/// far from the trail cost one comparison each.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Band<'a> {
+    points: &'a [[f64; 2]],
+    half_width_m: f64,
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl<'a> Band<'a> {
+    pub fn new(points: &'a [[f64; 2]], half_width_m: f64) -> Self {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for p in points {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k] - half_width_m);
+                hi[k] = hi[k].max(p[k] + half_width_m);
+            }
+        }
+        Self {
+            points,
+            half_width_m,
+            lo,
+            hi,
+        }
+    }
+
+    /// No water at all.
+    pub fn empty() -> Self {
+        Self::new(&[], 0.0)
+    }
+
+    pub fn contains(&self, p: [f64; 2]) -> bool {
+        (0..2).all(|k| (self.lo[k]..=self.hi[k]).contains(&p[k]))
+            && distance_to_polyline(p, self.points) <= self.half_width_m
     }
 }
 
@@ -63,7 +102,7 @@ fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
 
 /// Distance (m) from `p` to the polyline through `points` (a single point: distance to it; none:
 /// infinite).
-pub fn distance_to_polyline(p: [f64; 2], points: &[[f64; 2]]) -> f64 {
+fn distance_to_polyline(p: [f64; 2], points: &[[f64; 2]]) -> f64 {
     match points {
         [] => f64::INFINITY,
         [only] => dist(p, *only),
@@ -155,5 +194,9 @@ mod tests {
         assert_eq!(distance_to_polyline([-4.0, -3.0], &line), 5.0);
         assert_eq!(distance_to_polyline([1.0, 1.0], &line[..1]), 2f64.sqrt());
         assert_eq!(distance_to_polyline([1.0, 1.0], &[]), f64::INFINITY);
+        let band = Band::new(&line, 3.0);
+        assert!(band.contains([5.0, 3.0]) && band.contains([13.0, 5.0]));
+        assert!(!band.contains([5.0, 3.1]) && !band.contains([5.0, 8.0]));
+        assert!(!Band::empty().contains([0.0, 0.0]));
     }
 }

@@ -658,24 +658,19 @@ impl Tracker {
             if !guided(t) || self.detections[weak].peak_hazard >= thr {
                 continue;
             }
-            let from = self.detections[weak].position;
-            let velocity = [t.x[2], t.x[3]];
-            let length = (t.extent[0].max(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M);
-            let reach = guide_radius(t, self.cfg.guide_margin_m, stamp) + length;
+            let weak_astern = astern_m(t, self.detections[weak].position);
+            let reach = guide_radius(t, self.cfg.guide_margin_m, stamp) + track_length(t);
             let hull = self
                 .detections
                 .iter()
                 .enumerate()
                 .filter(|&(di, d)| {
-                    let ahead_of = |p: [f64; 2]| {
-                        (d.position[0] - p[0]) * velocity[0] + (d.position[1] - p[1]) * velocity[1]
-                            > 0.0
-                    };
+                    let astern = astern_m(t, d.position);
                     !taken[di]
                         && d.peak_hazard >= thr
                         && self.classes[di].0 != contact_class::CHANNEL_MARKER
-                        && ahead_of(from)
-                        && ahead_of([t.x[0], t.x[1]])
+                        && astern < 0.0
+                        && astern < weak_astern
                 })
                 .map(|(di, d)| (di, (d.position[0] - t.x[0]).hypot(d.position[1] - t.x[1])))
                 .filter(|&(_, dist)| dist <= reach)
@@ -834,6 +829,21 @@ const GUIDE_MIN_SPEED_MPS: f64 = 1.0;
 const MANOEUVRE_ACCEL_MPS2: f64 = 2.0;
 /// ... up to this much (m).
 const MANOEUVRE_MAX_M: f64 = 8.0;
+
+/// How far (m) `p` lies astern of a track's predicted position along its velocity (negative:
+/// ahead).
+fn astern_m(t: &Track, p: [f64; 2]) -> f64 {
+    let speed = t.x[2].hypot(t.x[3]);
+    if speed <= 0.0 {
+        return 0.0;
+    }
+    -((p[0] - t.x[0]) * t.x[2] + (p[1] - t.x[1]) * t.x[3]) / speed
+}
+
+/// A track's length (m) as far as guide windows go: its largest extent, capped at a boat's.
+fn track_length(t: &Track) -> f64 {
+    (t.extent[0].max(t.extent[1]) as f64).min(GUIDE_MAX_EXTENT_M)
+}
 
 /// Whether a track is one the map lags (moving, confirmed): its guide window lowers the detection
 /// threshold and it may follow a manoeuvre.
