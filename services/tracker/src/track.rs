@@ -641,12 +641,12 @@ impl Tracker {
     /// still averages) takes instead a strong, unassigned detection ahead of both that component
     /// and its own prediction, as far as a hull length beyond its guide window: the boat itself,
     /// out of the smear. Never one astern of the prediction: what lies there is the boat's wake
-    /// or a follower's bow wave, not its hull. In
-    /// follow_boat's log the target turned 29 degrees in 2 s; its track, fed by the smear that
-    /// lags a moving boat in the map, slid 7 m astern of the hull, the hull's own detection
-    /// started a new track, the old one coasted on to its death and the follower, taking its
-    /// prediction 12 m short of the target for the target, stopped and lost it. Channel markers
-    /// are left out: a boat passing a buoy must not jump onto it.
+    /// or a follower's bow wave, not its hull. In follow_boat's log the target turned 29 degrees
+    /// in 2 s; its track, fed by the smear that lags a moving boat in the map, slid 7 m behind
+    /// the boat's centre, the hull's own detection started a new track, the old one coasted on to
+    /// its death and the follower, taking its prediction 12 m short of the target for the target,
+    /// stopped and lost it. Channel markers are left out: a boat passing a buoy must not jump
+    /// onto it.
     fn prefer_hull_to_smear(&self, assigned: &mut [Option<usize>], stamp: u64) {
         let thr = self.cfg.hazard_threshold;
         let mut taken = vec![false; self.detections.len()];
