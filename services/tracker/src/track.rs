@@ -646,7 +646,10 @@ impl Tracker {
     /// the boat's centre, the hull's own detection started a new track, the old one coasted on to
     /// its death and the follower, taking its prediction 12 m short of the target for the target,
     /// stopped and lost it. Channel markers are left out: a boat passing a buoy must not jump
-    /// onto it.
+    /// onto it. So is a speck: the detection must have `GUIDED_MIN_CELLS` cells and stand
+    /// `guided_lifted_height_m` above the water, as a hull does. Without that test a one-cell
+    /// detection 0 m high, 8 m abeam, replaced a boat's own weak hull (21 cells, 3.6 m high) and
+    /// lost follow_boat's target (seed 38, 41.6 s).
     fn prefer_hull_to_smear(&self, assigned: &mut [Option<usize>], stamp: u64) {
         let thr = self.cfg.hazard_threshold;
         let mut taken = vec![false; self.detections.len()];
@@ -668,6 +671,8 @@ impl Tracker {
                     let astern = astern_m(t, d.position);
                     !taken[di]
                         && d.peak_hazard >= thr
+                        && d.cells >= GUIDED_MIN_CELLS
+                        && d.height >= self.cfg.guided_lifted_height_m
                         && self.classes[di].0 != contact_class::CHANNEL_MARKER
                         && astern < 0.0
                         && astern < weak_astern
