@@ -604,10 +604,7 @@ impl Tracker {
     /// and glint drifting across a turning boat took the bow's detection while the boat's own
     /// track, holding its stern, still waited for the stern.
     fn assign_manoeuvring(&self, assigned: &mut [Option<usize>], stamp: u64) {
-        let mut taken = vec![false; self.detections.len()];
-        for di in assigned.iter().flatten() {
-            taken[*di] = true;
-        }
+        let mut taken = taken_detections(assigned, self.detections.len());
         // Only after a missed map: one map's miss of the gate is noise, not a turn.
         let mut waiting: Vec<usize> = (0..self.tracks.len())
             .filter(|&ti| {
@@ -652,10 +649,7 @@ impl Tracker {
     /// lost follow_boat's target (seed 38, 41.6 s).
     fn prefer_hull_to_smear(&self, assigned: &mut [Option<usize>], stamp: u64) {
         let thr = self.cfg.hazard_threshold;
-        let mut taken = vec![false; self.detections.len()];
-        for di in assigned.iter().flatten() {
-            taken[*di] = true;
-        }
+        let mut taken = taken_detections(assigned, self.detections.len());
         for (ti, t) in self.tracks.iter().enumerate() {
             let Some(weak) = assigned[ti] else { continue };
             if !guided(t) || self.detections[weak].peak_hazard >= thr {
@@ -834,6 +828,15 @@ const GUIDE_MIN_SPEED_MPS: f64 = 1.0;
 const MANOEUVRE_ACCEL_MPS2: f64 = 2.0;
 /// ... up to this much (m).
 const MANOEUVRE_MAX_M: f64 = 8.0;
+
+/// Which of `count` detections `assigned` gives to some track.
+fn taken_detections(assigned: &[Option<usize>], count: usize) -> Vec<bool> {
+    let mut taken = vec![false; count];
+    for &di in assigned.iter().flatten() {
+        taken[di] = true;
+    }
+    taken
+}
 
 /// How far (m) `p` lies astern of a track's predicted position along its velocity (negative:
 /// ahead).

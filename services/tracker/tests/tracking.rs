@@ -40,6 +40,15 @@ fn confirmed_near(list: &ContactList, at: [f64; 2], within: f64) -> Option<Conta
         .copied()
 }
 
+/// The confirmed contacts of a list, in its order.
+fn confirmed(list: &ContactList) -> Vec<Contact> {
+    list.as_slice()
+        .iter()
+        .filter(|c| c.confirmed == 1)
+        .copied()
+        .collect()
+}
+
 /// Paints a 6 m x 2.5 m hull centred at `centre`, heading along the unit vector `heading`, as
 /// stereo maps it: its rim at `hazard`, not a solid rectangle.
 fn paint_hull_rim(
@@ -307,19 +316,10 @@ fn a_boat_that_turns_while_mapped_weakly_keeps_its_track_and_its_new_course() {
         )
         .unwrap();
         if k == 14 {
-            first = list
-                .as_slice()
-                .iter()
-                .find(|c| c.confirmed == 1)
-                .unwrap()
-                .id;
+            first = confirmed(&list)[0].id;
         }
     }
-    let confirmed: Vec<_> = list
-        .as_slice()
-        .iter()
-        .filter(|c| c.confirmed == 1)
-        .collect();
+    let confirmed = confirmed(&list);
     assert_eq!(confirmed.len(), 1, "{confirmed:?}");
     let c = confirmed[0];
     assert_eq!(c.id, first, "the track was not kept through the turn");
@@ -364,21 +364,10 @@ fn a_turning_boat_whose_smear_drags_its_track_astern_is_taken_up_by_its_hull_ahe
             let hdr = map_header(grid, k as u64, 200_000_000);
             t.update(&hdr, &cells, "tracker", &mut list).unwrap();
             if k == 9 {
-                first = list
-                    .as_slice()
-                    .iter()
-                    .find(|c| c.confirmed == 1)
-                    .unwrap()
-                    .id;
+                first = confirmed(&list)[0].id;
             }
         }
-        let confirmed: Vec<Contact> = list
-            .as_slice()
-            .iter()
-            .filter(|c| c.confirmed == 1)
-            .copied()
-            .collect();
-        (confirmed, first, path[29].0)
+        (confirmed(&list), first, path[29].0)
     };
     let (confirmed, first, hull) = track_of(true);
     assert_eq!(confirmed.len(), 1, "{confirmed:?}");
