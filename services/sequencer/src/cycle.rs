@@ -320,7 +320,7 @@ impl Sequencer {
                 };
                 let cfg = self.arcs.config();
                 self.wake_trail.update(
-                    target.map(|t| t.position),
+                    target.as_ref(),
                     cfg.followed_wake_map_m,
                     cfg.followed_exempt_m,
                 );

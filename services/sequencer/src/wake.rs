@@ -5,11 +5,18 @@
 
 use std::collections::VecDeque;
 
+use crate::arcs::FollowedTarget;
+
 /// Recent positions of the followed target (ENU, m), newest first, spanning at most a set path
-/// length. Owned by the sequencer, fed once per cycle.
+/// length, and astern of the oldest one the water it crossed before it was followed. Owned by the
+/// sequencer, fed once per cycle.
 #[derive(Debug, Clone, Default)]
 pub struct WakeTrail {
     crumbs: VecDeque<[f64; 2]>,
+    /// The target's course (rad, ENU) when the trail (re)started.
+    start_course: f64,
+    /// The crumbs and the tail astern of the oldest, as [`WakeTrail::points`] hands them out.
+    line: Vec<[f64; 2]>,
 }
 
 /// A new crumb is laid each time the target has gone this far (m) from the previous one; in
@@ -17,17 +24,38 @@ pub struct WakeTrail {
 /// band, so a turn is followed closely; at 7 m/s and 10 cycles a second, one crumb a cycle.
 const SPACING_M: f64 = 1.0;
 
+/// How long (s) the map holds what a moving boat leaves behind: its 3-observation average, the
+/// hazard decay and the wash itself (in follow_boat's log a wake cell stayed lethal for 4 s). A
+/// target that was already under way when it was first followed left that much water astern of
+/// where it was, along its course: as far back as it went in this time, and no farther than the
+/// trail's length, that water is in the trail too. Without it, a trail just started covers only
+/// the metres the target has gone since: in follow_boat (seed 38) the smear 5-13 m astern of a
+/// 7 m/s target 55 m ahead blocked every arc towards it for 4 s after it was first followed; the
+/// boat turned away and never closed in.
+const WAKE_HELD_S: f64 = 3.0;
+
 impl WakeTrail {
-    /// Takes this cycle's target position (`None`: not following) and keeps `length_m` of path
-    /// behind it. A position farther than `jump_m` from the newest crumb is another target, or the
-    /// same one re-acquired elsewhere: the trail restarts there.
-    pub fn update(&mut self, target: Option<[f64; 2]>, length_m: f64, jump_m: f64) {
-        let Some(p) = target.filter(|p| p.iter().all(|v| v.is_finite())) else {
+    /// Takes this cycle's target (`None`: not following) and keeps `length_m` of path behind it.
+    /// A position farther than `jump_m` from the newest crumb is another target, or the same one
+    /// re-acquired elsewhere: the trail restarts there.
+    pub fn update(&mut self, target: Option<&FollowedTarget>, length_m: f64, jump_m: f64) {
+        self.line.clear();
+        let Some(t) = target.filter(|t| {
+            t.position
+                .iter()
+                .chain(&t.velocity)
+                .chain([&t.course])
+                .all(|v| v.is_finite())
+        }) else {
             self.crumbs.clear();
             return;
         };
+        let p = t.position;
         if self.crumbs.front().is_some_and(|&q| dist(p, q) > jump_m) {
             self.crumbs.clear();
+        }
+        if self.crumbs.is_empty() {
+            self.start_course = t.course;
         }
         match self.crumbs.get(1) {
             Some(&second) if dist(p, second) < SPACING_M => self.crumbs[0] = p,
@@ -49,11 +77,19 @@ impl WakeTrail {
             }
         }
         self.crumbs.truncate(keep);
+        self.line.extend(self.crumbs.iter());
+        let speed = t.velocity[0].hypot(t.velocity[1]);
+        let tail = (length_m - path).min(speed * WAKE_HELD_S);
+        if tail > 0.0 {
+            let oldest = self.line[self.line.len() - 1];
+            let (s, c) = self.start_course.sin_cos();
+            self.line.push([oldest[0] - tail * c, oldest[1] - tail * s]);
+        }
     }
 
-    /// The trail, newest first, contiguous for a [`Band`].
-    pub fn points(&mut self) -> &[[f64; 2]] {
-        self.crumbs.make_contiguous()
+    /// The trail, newest first, for a [`Band`].
+    pub fn points(&self) -> &[[f64; 2]] {
+        &self.line
     }
 }
 
@@ -129,12 +165,24 @@ fn distance_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 mod tests {
     use super::*;
 
+    /// The target at `position` moving at `velocity` (its course along it).
+    fn target(position: [f64; 2], velocity: [f64; 2]) -> FollowedTarget {
+        FollowedTarget {
+            position,
+            velocity,
+            course: velocity[1].atan2(velocity[0]),
+        }
+    }
+
     /// Feeds positions along `path` (a function of time) at 10 Hz for `seconds`; returns the last.
     fn run(trail: &mut WakeTrail, seconds: f64, path: impl Fn(f64) -> [f64; 2]) -> [f64; 2] {
         let mut last = [f64::NAN; 2];
         for k in 0..=(seconds * 10.0) as usize {
-            last = path(k as f64 * 0.1);
-            trail.update(Some(last), 20.0, 8.0);
+            let t = k as f64 * 0.1;
+            let (p, ahead) = (path(t), path(t + 0.01));
+            let velocity = [(ahead[0] - p[0]) / 0.01, (ahead[1] - p[1]) / 0.01];
+            trail.update(Some(&target(p, velocity)), 20.0, 8.0);
+            last = p;
         }
         last
     }
@@ -176,14 +224,39 @@ mod tests {
         let mut trail = WakeTrail::default();
         run(&mut trail, 2.0, |t| [0.0, 5.0 * t]);
         assert!(trail.points().len() > 5);
-        // Another target 30 m away: the old water is not its wake.
-        trail.update(Some([30.0, 10.0]), 20.0, 8.0);
+        // Another target 30 m away, lying still: the old water is not its wake.
+        trail.update(Some(&target([30.0, 10.0], [0.0, 0.0])), 20.0, 8.0);
         assert_eq!(trail.points(), &[[30.0, 10.0]]);
         trail.update(None, 20.0, 8.0);
         assert!(trail.points().is_empty());
-        // A non-finite position is no position.
-        trail.update(Some([f64::NAN, 0.0]), 20.0, 8.0);
+        // A non-finite position or velocity is no target.
+        trail.update(Some(&target([f64::NAN, 0.0], [1.0, 0.0])), 20.0, 8.0);
         assert!(trail.points().is_empty());
+        trail.update(Some(&target([0.0, 0.0], [f64::NAN, 0.0])), 20.0, 8.0);
+        assert!(trail.points().is_empty());
+    }
+
+    #[test]
+    fn a_target_under_way_when_first_followed_has_its_wake_astern_in_the_trail() {
+        // First followed at (0, 50) going north at 5 m/s: the 15 m it went in the last 3 s, along
+        // its course, are its wake.
+        let mut trail = WakeTrail::default();
+        trail.update(Some(&target([0.0, 50.0], [0.0, 5.0])), 20.0, 8.0);
+        let close = |a: [f64; 2], b: [f64; 2]| dist(a, b) < 1e-9;
+        let pts = trail.points().to_vec();
+        assert!(pts.len() == 2 && close(pts[0], [0.0, 50.0]) && close(pts[1], [0.0, 35.0]));
+        let band = Band::new(trail.points(), 4.0);
+        assert!(band.contains([1.0, 40.0]) && band.contains([-3.5, 36.0]));
+        assert!(!band.contains([0.0, 30.0]) && !band.contains([5.0, 45.0]));
+        // As it goes on, its own path takes over and the whole trail stays 20 m long.
+        let last = run(&mut trail, 2.0, |t| [0.0, 50.0 + 5.0 * t]);
+        let pts = trail.points().to_vec();
+        assert_eq!(pts[0], last);
+        assert!(close(pts[pts.len() - 1], [0.0, 40.0]), "{pts:?}");
+        // A boat lying still leaves no wake: only the water it lies on.
+        let mut still = WakeTrail::default();
+        still.update(Some(&target([0.0, 50.0], [0.0, 0.0])), 20.0, 8.0);
+        assert_eq!(still.points(), &[[0.0, 50.0]]);
     }
 
     #[test]

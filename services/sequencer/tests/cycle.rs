@@ -446,8 +446,9 @@ fn close_behind_a_followed_boat_only_the_water_up_to_the_look_ahead_is_judged() 
     seq.on_contacts(&contacts);
     assert!(seq.cycle("test").1.arc_blocked(straight));
     // Behind the target, the water it went over (its trail, `arcs.followed_wake_map_m`) blocks
-    // nothing. Followed for 2 s as it came up from 10 m ahead to 20 m (the vessel holds still
-    // here), the cells it left 8-9 m astern of it block no arc ...
+    // nothing. Followed for 2 s as it went from 22 m ahead to 32 m (the vessel holds still here),
+    // the cells it left 8-9 m astern of it block no arc, nor does its wake from before it was
+    // followed, 6-8 m astern of where it was first seen (it was under way then) ...
     let followed = |cells: &[(f64, f64)]| {
         let mut seq = started(FOLLOW);
         let mut status = None;
@@ -455,15 +456,16 @@ fn close_behind_a_followed_boat_only_the_water_up_to_the_look_ahead_is_judged() 
             let t = (100 + 100 * k) * MS;
             let mut list = contacts;
             list.hdr.stamp_ns = t;
-            list.contacts[1].position = [10.0 + 0.5 * k as f64, 0.0];
+            list.contacts[1].position = [22.0 + 0.5 * k as f64, 0.0];
             feed(&mut seq, t, cells);
             seq.on_contacts(&list);
             status = Some(seq.cycle("test").1);
         }
         status.unwrap().arc_blocked(straight)
     };
-    assert!(!followed(&[(11.0, 1.0), (12.0, -1.0)]));
-    // ... but a hazard short of where it was first followed does.
+    assert!(!followed(&[(23.0, 1.0), (24.0, -1.0)]));
+    assert!(!followed(&[(14.0, 1.0), (16.0, -1.0)]));
+    // ... but a hazard 27 m astern of it, beyond the trail's 20 m and its 4 m half-width, does.
     assert!(followed(&[(5.0, 1.0)]));
 }
 
