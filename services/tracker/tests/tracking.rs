@@ -679,3 +679,47 @@ fn where_stereo_clutter_crowds_a_track_needs_more_sightings_and_elsewhere_it_doe
     };
     assert_eq!(clutter_run(off), [Some(104), Some(102), Some(104)]);
 }
+
+/// The class the tracker reports, after 4 s at 5 maps a second, for a 13 m x 4.5 m component
+/// standing 4 m above the water that moves north at `speed` m/s: what the map holds of a boat
+/// with the cells its 3-map average still holds astern of it.
+fn class_of_a_long_tall_blob(speed: f64) -> u8 {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    for k in 0..20u64 {
+        let y = -30.0 + speed * k as f64 * 0.2;
+        let mut cells = open_water(&grid);
+        for row in 0..grid.height {
+            for col in 0..grid.width {
+                let [cx, cy] = grid.cell_center(col, row);
+                if (cx - 10.0).abs() <= 2.25 && (cy - y).abs() <= 6.5 {
+                    cells[(row * grid.width + col) as usize] = MapCell {
+                        hazard: 150,
+                        max_height_cm: 400,
+                        observed: 3,
+                        ..Default::default()
+                    };
+                }
+            }
+        }
+        t.update(
+            &map_header(grid, k, 200_000_000),
+            &cells,
+            "tracker",
+            &mut list,
+        )
+        .unwrap();
+    }
+    let tracks = confirmed(&list);
+    assert_eq!(tracks.len(), 1, "{tracks:?}");
+    tracks[0].class
+}
+
+#[test]
+fn a_long_component_that_moves_like_a_boat_is_reported_a_boat() {
+    // Lying still, the shape alone reads as an extended object (a bank piece, a pylon) ...
+    assert_eq!(class_of_a_long_tall_blob(0.0), contact_class::EXTENDED);
+    // ... moving at 7 m/s, detected every map, it is a boat with its smear.
+    assert_eq!(class_of_a_long_tall_blob(7.0), contact_class::BOAT);
+}
