@@ -29,9 +29,9 @@ const SPACING_M: f64 = 1.0;
 /// target that was already under way when it was first followed left that much water astern of
 /// where it was, along its course: as far back as it went in this time, and no farther than the
 /// trail's length, that water is in the trail too. Without it, a trail just started covers only
-/// the metres the target has gone since: in follow_boat (seed 38) the smear 5-13 m astern of a
-/// 7 m/s target 55 m ahead blocked every arc towards it for 4 s after it was first followed; the
-/// boat turned away and never closed in.
+/// the metres the target has gone since: in follow_boat (seeds 38 and 40) the smear astern of a
+/// 7 m/s target 55 m ahead blocked the arcs towards it from about 2 s after it was first
+/// followed; the boat turned away and never closed in.
 const WAKE_HELD_S: f64 = 3.0;
 
 impl WakeTrail {
@@ -80,8 +80,7 @@ impl WakeTrail {
         self.line.extend(self.crumbs.iter());
         let speed = t.velocity[0].hypot(t.velocity[1]);
         let tail = (length_m - path).min(speed * WAKE_HELD_S);
-        if tail > 0.0 {
-            let oldest = self.line[self.line.len() - 1];
+        if let Some(&oldest) = self.crumbs.back().filter(|_| tail > 0.0) {
             let (s, c) = self.start_course.sin_cos();
             self.line.push([oldest[0] - tail * c, oldest[1] - tail * s]);
         }

@@ -49,6 +49,29 @@ fn confirmed(list: &ContactList) -> Vec<Contact> {
         .collect()
 }
 
+/// Sets every cell whose centre `covers` to an observed hazard at `hazard`, its latest observation
+/// `height_cm` above the water.
+fn paint(
+    grid: &GridGeometry,
+    cells: &mut [MapCell],
+    hazard: u8,
+    height_cm: i16,
+    covers: impl Fn([f64; 2]) -> bool,
+) {
+    for row in 0..grid.height {
+        for col in 0..grid.width {
+            if covers(grid.cell_center(col, row)) {
+                cells[(row * grid.width + col) as usize] = MapCell {
+                    hazard,
+                    max_height_cm: height_cm,
+                    observed: 3,
+                    ..Default::default()
+                };
+            }
+        }
+    }
+}
+
 /// Paints a 6 m x 2.5 m hull centred at `centre`, heading along the unit vector `heading`, as
 /// stereo maps it: its rim at `hazard`, not a solid rectangle.
 fn paint_hull_rim(
@@ -59,24 +82,14 @@ fn paint_hull_rim(
     hazard: u8,
 ) {
     let [c, s] = heading;
-    for row in 0..grid.height {
-        for col in 0..grid.width {
-            let [x, y] = grid.cell_center(col, row);
-            let (dx, dy) = (x - centre[0], y - centre[1]);
-            let along = dx * c + dy * s;
-            let across = -dx * s + dy * c;
-            let inside = along.abs() <= 3.0 && across.abs() <= 1.25;
-            let rim = (3.0 - along.abs()).min(1.25 - across.abs()) <= 0.75;
-            if inside && rim {
-                cells[(row * grid.width + col) as usize] = MapCell {
-                    hazard,
-                    max_height_cm: 150,
-                    observed: 3,
-                    ..Default::default()
-                };
-            }
-        }
-    }
+    paint(grid, cells, hazard, 150, |[x, y]| {
+        let (dx, dy) = (x - centre[0], y - centre[1]);
+        let along = dx * c + dy * s;
+        let across = -dx * s + dy * c;
+        let inside = along.abs() <= 3.0 && across.abs() <= 1.25;
+        let rim = (3.0 - along.abs()).min(1.25 - across.abs()) <= 0.75;
+        inside && rim
+    });
 }
 
 /// Header of world map `k` of a run at one map every `period_ns`, the vessel at the origin.
@@ -690,26 +703,11 @@ fn class_of_a_long_tall_blob(speed: f64) -> u8 {
     for k in 0..20u64 {
         let y = -30.0 + speed * k as f64 * 0.2;
         let mut cells = open_water(&grid);
-        for row in 0..grid.height {
-            for col in 0..grid.width {
-                let [cx, cy] = grid.cell_center(col, row);
-                if (cx - 10.0).abs() <= 2.25 && (cy - y).abs() <= 6.5 {
-                    cells[(row * grid.width + col) as usize] = MapCell {
-                        hazard: 150,
-                        max_height_cm: 400,
-                        observed: 3,
-                        ..Default::default()
-                    };
-                }
-            }
-        }
-        t.update(
-            &map_header(grid, k, 200_000_000),
-            &cells,
-            "tracker",
-            &mut list,
-        )
-        .unwrap();
+        paint(&grid, &mut cells, 150, 400, |[cx, cy]| {
+            (cx - 10.0).abs() <= 2.25 && (cy - y).abs() <= 6.5
+        });
+        let hdr = map_header(grid, k, 200_000_000);
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
     }
     let tracks = confirmed(&list);
     assert_eq!(tracks.len(), 1, "{tracks:?}");
