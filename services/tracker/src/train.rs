@@ -362,6 +362,7 @@ mod tests {
             mean_hazard: 0.8,
             peak_hazard: 230,
             cells: 16,
+            ..Default::default()
         }
     }
 

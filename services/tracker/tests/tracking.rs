@@ -58,15 +58,26 @@ fn paint(
     height_cm: i16,
     covers: impl Fn([f64; 2]) -> bool,
 ) {
+    let cell = MapCell {
+        hazard,
+        max_height_cm: height_cm,
+        observed: 3,
+        ..Default::default()
+    };
+    paint_cells(grid, cells, cell, covers);
+}
+
+/// Sets every cell whose centre `covers` to `cell`.
+fn paint_cells(
+    grid: &GridGeometry,
+    cells: &mut [MapCell],
+    cell: MapCell,
+    covers: impl Fn([f64; 2]) -> bool,
+) {
     for row in 0..grid.height {
         for col in 0..grid.width {
             if covers(grid.cell_center(col, row)) {
-                cells[(row * grid.width + col) as usize] = MapCell {
-                    hazard,
-                    max_height_cm: height_cm,
-                    observed: 3,
-                    ..Default::default()
-                };
+                cells[(row * grid.width + col) as usize] = cell;
             }
         }
     }
@@ -392,6 +403,78 @@ fn a_turning_boat_whose_smear_drags_its_track_astern_is_taken_up_by_its_hull_ahe
     let (confirmed, _, _) = track_of(false);
     let lag = (confirmed[0].position[0] - hull[0]).hypot(confirmed[0].position[1] - hull[1]);
     assert!(lag > 6.0, "{lag:.1} m");
+}
+
+/// A 6 m boat making 7 m/s north, seen from astern as the world map holds it while the own boat
+/// closes in (follow_boat, seed 42, 245-248 s): fully mapped for 2 s, then each map sees only its
+/// transom, at little hazard (a first sighting for perception) under 60 points 2 m high, while
+/// the smear of the frames the map still averages grows astern of it from 2 to 8 m. Returns the
+/// confirmed tracks at the end, the transom's position and the id confirmed while fully mapped.
+fn boat_seen_from_astern(cfg: TrackerConfig) -> (Vec<Contact>, [f64; 2], u32) {
+    let mut t = Tracker::new(cfg, model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let transom = |k: u64| -33.0 + 1.4 * k as f64;
+    let mut first = 0;
+    for k in 0..40u64 {
+        let mut cells = open_water(&grid);
+        if k < 10 {
+            paint_hull_rim(&grid, &mut cells, [0.0, transom(k) + 3.0], [0.0, 1.0], 150);
+        } else {
+            let (stern, smear) = (transom(k), 2.0 + 6.0 * (k - 10) as f64 / 29.0);
+            let beam = |x: f64| x.abs() <= 1.25;
+            let smeared = MapCell {
+                hazard: 110,
+                max_height_cm: 150,
+                ..Default::default()
+            };
+            paint_cells(&grid, &mut cells, smeared, |[x, y]| {
+                beam(x) && y < stern - 0.5 && y >= stern - 0.5 - smear
+            });
+            let seen = MapCell {
+                hazard: 30,
+                max_height_cm: 200,
+                observed: 60,
+                ..Default::default()
+            };
+            paint_cells(&grid, &mut cells, seen, |[x, y]| {
+                beam(x) && (y - stern).abs() <= 0.5
+            });
+        }
+        t.update(
+            &map_header(grid, k, 200_000_000),
+            &cells,
+            "tracker",
+            &mut list,
+        )
+        .unwrap();
+        if k == 9 {
+            first = confirmed(&list)[0].id;
+        }
+    }
+    (confirmed(&list), [0.0, transom(39)], first)
+}
+
+#[test]
+fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
+    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default());
+    assert_eq!(tracks.len(), 1, "{tracks:?}");
+    let c = tracks[0];
+    assert_eq!(c.id, first);
+    let speed = c.velocity[0].hypot(c.velocity[1]);
+    let error = (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]);
+    assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed:.2}");
+    assert!(error < 1.0, "{error:.1} m off the transom");
+    // Placed by the hazard-weighted centroid, the track falls back into the smear and slows.
+    let off = TrackerConfig {
+        guided_fresh_min_points: 0,
+        ..TrackerConfig::default()
+    };
+    let (tracks, stern, _) = boat_seen_from_astern(off);
+    let c = tracks[0];
+    let speed = c.velocity[0].hypot(c.velocity[1]);
+    let lag = stern[1] - c.position[1];
+    assert!(lag > 3.0 && speed < 6.7, "lag {lag:.1} m, speed {speed:.2}");
 }
 
 #[test]
