@@ -69,6 +69,18 @@ pub struct GuideThresholds {
     pub fresh_min_points: u8,
 }
 
+/// A disc of the map around a track's predicted position (see [`Detector::guide`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuideWindow {
+    /// ENU (m).
+    pub centre: [f64; 2],
+    pub radius: f64,
+    /// Whether cells observed in this very map standing high join here at any hazard
+    /// ([`GuideThresholds::fresh_min_points`]): for a track detected like a real object, not for
+    /// wave glint, whose window would find such cells somewhere on the waves and let it walk on.
+    pub fresh: bool,
+}
+
 /// What [`Detector::detect`] looks for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectParams {
@@ -87,8 +99,10 @@ pub struct Detector {
     label: Vec<u32>,
     stack: Vec<u32>,
     pass: u32,
-    /// Cells marked with `guide_pass` lie in a guide window of the next `detect`.
+    /// Cells marked with `guide_pass` lie in a guide window of the next `detect` ...
     guide_mark: Vec<u32>,
+    /// ... and in one whose fresh cells join ([`GuideWindow::fresh`]).
+    fresh_mark: Vec<u32>,
     guide_pass: u32,
     /// Thresholds inside the guide windows; `None` once the windows have been used.
     guided: Option<GuideThresholds>,
@@ -99,18 +113,20 @@ impl Detector {
         Self::default()
     }
 
-    /// Lowers the threshold of the next [`Detector::detect`] to `thresholds` inside the discs
-    /// (ENU centre, radius in m) of `grid`. Applies to that one call only.
+    /// Lowers the threshold of the next [`Detector::detect`] to `thresholds` inside the
+    /// `windows` of `grid`. Applies to that one call only.
     pub fn guide(
         &mut self,
         grid: &GridGeometry,
         thresholds: GuideThresholds,
-        discs: impl IntoIterator<Item = ([f64; 2], f64)>,
+        windows: impl IntoIterator<Item = GuideWindow>,
     ) {
         let (w, h) = (grid.width as usize, grid.height as usize);
         if self.guide_mark.len() != w * h {
             self.guide_mark.clear();
             self.guide_mark.resize(w * h, 0);
+            self.fresh_mark.clear();
+            self.fresh_mark.resize(w * h, 0);
             self.guide_pass = 0;
         }
         self.guide_pass = self.guide_pass.wrapping_add(1).max(1);
@@ -118,7 +134,12 @@ impl Detector {
         let r = grid.resolution_m;
         let west = grid.center[0] - w as f64 / 2.0 * r;
         let south = grid.center[1] - h as f64 / 2.0 * r;
-        for ([x, y], radius) in discs {
+        for GuideWindow {
+            centre: [x, y],
+            radius,
+            fresh,
+        } in windows
+        {
             if !(x.is_finite() && y.is_finite() && radius.is_finite() && radius >= 0.0) {
                 continue;
             }
@@ -136,6 +157,9 @@ impl Detector {
                     let cx = west + (col as f64 + 0.5) * r;
                     if (cx - x).hypot(cy - y) <= radius {
                         self.guide_mark[row * w + col] = self.guide_pass;
+                        if fresh {
+                            self.fresh_mark[row * w + col] = self.guide_pass;
+                        }
                     }
                 }
             }
@@ -174,11 +198,11 @@ impl Detector {
             .guided
             .take()
             .filter(|_| self.guide_mark.len() == w * h);
-        let (marks, mark) = (&self.guide_mark, self.guide_pass);
-        // Observed in this map, standing high, inside a window.
+        let (marks, fresh_marks, mark) = (&self.guide_mark, &self.fresh_mark, self.guide_pass);
+        // Observed in this map, standing high, inside a window that takes such cells.
         let fresh = |i: usize| {
             guided.is_some_and(|g| {
-                marks[i] == mark
+                fresh_marks[i] == mark
                     && g.fresh_min_points > 0
                     && cells[i].observed >= g.fresh_min_points
                     && cells[i].max_height_cm >= g.lifted_height_cm
@@ -381,7 +405,7 @@ mod tests {
         d.detect(&grid, &cells, &params, &mut out);
         assert!(out.is_empty());
         // A track is expected at the west strip: it is detected whole, the east one is not.
-        d.guide(&grid, guided(64), [([-5.0, 0.0], 3.0)]);
+        d.guide(&grid, guided(64), [window([-5.0, 0.0], 3.0, false)]);
         d.detect(&grid, &cells, &params, &mut out);
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].cells, 5);
@@ -391,9 +415,17 @@ mod tests {
         d.detect(&grid, &cells, &params, &mut out);
         assert!(out.is_empty());
         // A guided threshold above the strip's evidence finds nothing either.
-        d.guide(&grid, guided(100), [([-5.0, 0.0], 3.0)]);
+        d.guide(&grid, guided(100), [window([-5.0, 0.0], 3.0, false)]);
         d.detect(&grid, &cells, &params, &mut out);
         assert!(out.is_empty());
+    }
+
+    fn window(centre: [f64; 2], radius: f64, fresh: bool) -> GuideWindow {
+        GuideWindow {
+            centre,
+            radius,
+            fresh,
+        }
     }
 
     /// Guide thresholds without the lifted rule.
@@ -430,7 +462,7 @@ mod tests {
         };
         let mut d = Detector::new();
         let mut out = Vec::new();
-        d.guide(&grid, thresholds, [([-2.0, 0.0], 8.0)]);
+        d.guide(&grid, thresholds, [window([-2.0, 0.0], 8.0, false)]);
         d.detect(&grid, &cells, &params, &mut out);
         assert_eq!(out.len(), 1, "{out:?}");
         assert_eq!(out[0].cells, 4);
@@ -446,7 +478,7 @@ mod tests {
                 lifted_hazard: 71,
                 ..thresholds
             },
-            [([-2.0, 0.0], 8.0)],
+            [window([-2.0, 0.0], 8.0, false)],
         );
         d.detect(&grid, &cells, &params, &mut out);
         assert!(out.is_empty());
@@ -491,7 +523,7 @@ mod tests {
         };
         let mut d = Detector::new();
         let mut out = Vec::new();
-        d.guide(&grid, thresholds, [([-4.0, 0.0], 6.0)]);
+        d.guide(&grid, thresholds, [window([-4.0, 0.0], 6.0, true)]);
         d.detect(&grid, &cells, &GUIDE_TEST_PARAMS, &mut out);
         assert_eq!(out.len(), 1, "{out:?}");
         let boat = out[0];
@@ -507,12 +539,16 @@ mod tests {
                 fresh_min_points: 0,
                 ..thresholds
             },
-            [([-4.0, 0.0], 6.0)],
+            [window([-4.0, 0.0], 6.0, true)],
         );
         d.detect(&grid, &cells, &GUIDE_TEST_PARAMS, &mut out);
         assert_eq!(out.len(), 1, "{out:?}");
         assert_eq!((out[0].cells, out[0].fresh_cells), (18, 0));
         assert_eq!(out[0].fresh_position, out[0].position);
+        // So in a window that does not take fresh cells (a glint track's).
+        d.guide(&grid, thresholds, [window([-4.0, 0.0], 6.0, false)]);
+        d.detect(&grid, &cells, &GUIDE_TEST_PARAMS, &mut out);
+        assert_eq!((out.len(), out[0].fresh_cells), (1, 0), "{out:?}");
         // Outside a window nothing joins.
         d.detect(&grid, &cells, &GUIDE_TEST_PARAMS, &mut out);
         assert!(out.is_empty(), "{out:?}");

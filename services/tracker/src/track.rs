@@ -5,7 +5,7 @@
 
 use crate::classify::Model;
 use crate::clutter::ClutterMap;
-use crate::detect::{DetectParams, Detection, Detector, GuideThresholds};
+use crate::detect::{DetectParams, Detection, Detector, GuideThresholds, GuideWindow};
 use messages::{
     contact_class, Contact, ContactList, GridGeometry, Header, MapCell, WorldMapHeader,
     MAX_CONTACTS,
@@ -187,6 +187,9 @@ struct Track {
     /// Detections in the `unobserved_window` maps up to and including the last one.
     recent_hits: u32,
     confirmed: bool,
+    /// Guided and detected like a real object this map: its guide window takes cells seen
+    /// standing high in this map, and it is placed at them ([`measured_at`]).
+    placed_by_fresh_cells: bool,
     /// Summed class posteriors, indexed by contact class.
     class_score: [f32; 5],
     extent: [f32; 3],
@@ -382,8 +385,13 @@ impl Tracker {
         let dt = self.last_stamp.map_or(0.0, |p| (stamp - p) as f64 * 1e-9);
         self.last_stamp = Some(stamp);
 
+        let (object_hits, object_window) =
+            (self.cfg.unobserved_min_hits, self.cfg.unobserved_window);
         for t in &mut self.tracks {
             predict(t, dt, self.cfg.accel_sigma);
+            // Detected like a real object (see `unobserved_min_hits`), not like wave glint.
+            t.placed_by_fresh_cells =
+                guided(t) && (t.history & window_mask(object_window)).count_ones() >= object_hits;
         }
         let margin = self.cfg.guide_margin_m;
         // Only moving objects, which the map lags behind, and never what the classifier holds
@@ -400,11 +408,16 @@ impl Tracker {
         self.detector.guide(
             &g,
             thresholds,
-            self.tracks.iter().filter(|t| guides(t)).map(|t| {
-                // Half the diagonal, capped: a bank-sized track must not lower the threshold
-                // over a whole shore.
-                ([t.x[0], t.x[1]], guide_radius(t, margin, stamp))
-            }),
+            self.tracks
+                .iter()
+                .filter(|t| guides(t))
+                .map(|t| GuideWindow {
+                    centre: [t.x[0], t.x[1]],
+                    // Half the diagonal, capped: a bank-sized track must not lower the
+                    // threshold over a whole shore.
+                    radius: guide_radius(t, margin, stamp),
+                    fresh: t.placed_by_fresh_cells,
+                }),
         );
         let params = self.cfg.detect_params(&g);
         self.detector
@@ -548,6 +561,7 @@ impl Tracker {
                 misses: 0,
                 unobserved_ns: 0,
                 recent_hits: 1,
+                placed_by_fresh_cells: false,
                 confirmed: confirm_rule(&self.cfg, &self.clutter, own, yaw, d.position).0 <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
@@ -921,15 +935,17 @@ fn guide_radius(t: &Track, margin: f64, stamp: u64) -> f64 {
 /// Smallest component (cells) that counts when it exists only through a guide window.
 const GUIDED_MIN_CELLS: u32 = 3;
 
-/// Where detection `d` places track `t`: for a guided track, the centroid of the detection's cells
-/// observed in this map standing high ([`Detection::fresh_position`]) when there are
-/// `FRESH_MIN_CELLS` of them, else its hazard-weighted centroid. The hazard weights favour the
-/// older frames the map averages over the hull's newest cells: a followed boat's detections lay
-/// 4-5.5 m astern of its centre and its track slowed from 7.8 to 6.0 m/s while the boat held
-/// 7 m/s, and the follower, reading the boat 7 m closer than it was, braked astern (follow_boat,
-/// seed 42, 245-248 s).
+/// Where detection `d` places track `t`: for a guided track detected like a real object, the
+/// centroid of the detection's cells observed in this map standing high
+/// ([`Detection::fresh_position`]) when there are `FRESH_MIN_CELLS` of them, else its
+/// hazard-weighted centroid. The hazard weights favour the older frames the map averages over the
+/// hull's newest cells: a followed boat's detections lay 4-5.5 m astern of its centre and its
+/// track slowed from 7.8 to 6.0 m/s while the boat held 7 m/s, and the follower, reading the boat
+/// 7 m closer than it was, braked astern (follow_boat, seed 42, 245-248 s). Not for wave glint:
+/// placed by whatever high cells its window found on the waves, a glint track reported a boat
+/// sped up from 1.4 to 8 m/s towards the own boat and blocked every arc (seed 38, 102-110 s).
 fn measured_at(t: &Track, d: &Detection) -> [f64; 2] {
-    if guided(t) && d.fresh_cells >= FRESH_MIN_CELLS {
+    if t.placed_by_fresh_cells && d.fresh_cells >= FRESH_MIN_CELLS {
         d.fresh_position
     } else {
         d.position
@@ -988,6 +1004,7 @@ mod tests {
             misses: 1,
             unobserved_ns: 0,
             recent_hits: 7,
+            placed_by_fresh_cells: false,
             confirmed: true,
             class_score: [0.0; 5],
             extent: [3.0, 6.0, 1.5],
