@@ -122,8 +122,15 @@ fn main() -> anyhow::Result<()> {
             let (along, across) = frame(d.position);
             if along.hypot(across) <= args.radius {
                 println!(
-                    "   det along {along:6.1} across {across:6.1}  cells {:4} peak {:3} height {:.1} extent {:.1}x{:.1}",
-                    d.cells, d.peak_hazard, d.height, d.extent[0], d.extent[1]
+                    "   det along {along:6.1} across {across:6.1}  cells {:4} peak {:3} height {:.1} extent {:.1}x{:.1}  fresh {:3} along {:6.1} observed {:3}",
+                    d.cells,
+                    d.peak_hazard,
+                    d.height,
+                    d.extent[0],
+                    d.extent[1],
+                    d.fresh_cells,
+                    frame(d.fresh_position).0,
+                    d.observed_cells,
                 );
             }
         }

@@ -52,6 +52,10 @@ pub struct Detection {
     /// cells, and the position is `position`.
     pub fresh_cells: u32,
     pub fresh_position: [f64; 2],
+    /// Cells observed in this map at all: 0 when the heads did not look there again since the
+    /// last map (the world map fuses one head's frame at a time), so the component is the last
+    /// map's, decayed.
+    pub observed_cells: u32,
 }
 
 /// What a cell inside a guide window needs to join a component (see [`Detector::guide`]).
@@ -237,6 +241,7 @@ impl Detector {
             let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
             let (mut hmax, mut peak) = (i16::MIN, 0u8);
             let (mut fresh_n, mut fresh_x, mut fresh_y) = (0u32, 0f64, 0f64);
+            let mut observed_n = 0u32;
             while let Some(i) = self.stack.pop() {
                 let i = i as usize;
                 let (x, y) = (i % w, i / w);
@@ -256,6 +261,7 @@ impl Detector {
                 r1 = r1.max(y);
                 hmax = hmax.max(c.max_height_cm);
                 peak = peak.max(c.hazard);
+                observed_n += (c.observed > 0) as u32;
                 if fresh(i) {
                     fresh_n += 1;
                     fresh_x += fx;
@@ -300,6 +306,7 @@ impl Detector {
                 peak_hazard: peak,
                 cells: n,
                 fresh_cells: fresh_n,
+                observed_cells: observed_n,
                 fresh_position: if fresh_n > 0 {
                     at(fresh_x / fresh_n as f64, fresh_y / fresh_n as f64)
                 } else {

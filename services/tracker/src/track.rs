@@ -389,9 +389,13 @@ impl Tracker {
             (self.cfg.unobserved_min_hits, self.cfg.unobserved_window);
         for t in &mut self.tracks {
             predict(t, dt, self.cfg.accel_sigma);
-            // Detected like a real object (see `unobserved_min_hits`), not like wave glint.
-            t.placed_by_fresh_cells =
-                guided(t) && (t.history & window_mask(object_window)).count_ones() >= object_hits;
+            // Once detected like a real object (see `unobserved_min_hits`), not like wave glint,
+            // for as long as it is guided: a track that went back and forth between the two
+            // centroids, 2-3 m apart for a boat seen from astern, fell out of its own gate and
+            // its speed swung by 2 m/s (follow_boat, seed 38, 38-76 s).
+            t.placed_by_fresh_cells = guided(t)
+                && (t.placed_by_fresh_cells
+                    || (t.history & window_mask(object_window)).count_ones() >= object_hits);
         }
         let margin = self.cfg.guide_margin_m;
         // Only moving objects, which the map lags behind, and never what the classifier holds
@@ -626,12 +630,20 @@ impl Tracker {
         for (ti, t) in self.tracks.iter().enumerate() {
             let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
             for (di, d) in self.detections.iter().enumerate() {
-                let z = measured_at(t, d);
-                let r = measurement_noise(&self.cfg, own, z);
-                let s = h * t.p * h.transpose() + r;
-                let Some(si) = s.try_inverse() else { continue };
-                let y = Vector2::new(z[0] - t.x[0], z[1] - t.x[1]);
-                let v = (y.transpose() * si * y)[0];
+                // In the gate by either centroid: a track placed by the hazard-weighted one meets
+                // its first fresh centroid metres ahead.
+                let v = [measured_at(t, d), d.position]
+                    .into_iter()
+                    .filter_map(|z| {
+                        let r = measurement_noise(&self.cfg, own, z);
+                        let si = (h * t.p * h.transpose() + r).try_inverse()?;
+                        let y = Vector2::new(z[0] - t.x[0], z[1] - t.x[1]);
+                        Some((y.transpose() * si * y)[0])
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                if !v.is_finite() {
+                    continue;
+                }
                 d2[ti * nd + di] = v;
                 if v < self.cfg.gate_chi2 {
                     m[(ti, di)] = (v * SCALE) as i64;
