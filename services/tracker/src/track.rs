@@ -219,6 +219,19 @@ impl Track {
         }
     }
 
+    /// Whether the track has the record of a real object, not of wave glint (which confirms
+    /// within a second or two, is detected in about one map in three, and is gone): confirmed,
+    /// seen for `unobserved_min_seen_s` from birth to its last detection, detected in
+    /// `unobserved_min_hits` of the `unobserved_window` maps up to its last detection (an object
+    /// at the edge of the view is missed there before it leaves coverage, and that is no evidence
+    /// against it), and not voted a false alarm.
+    fn has_an_objects_record(&self, cfg: &TrackerConfig) -> bool {
+        self.confirmed
+            && self.last_hit_ns - self.born_ns >= (cfg.unobserved_min_seen_s * 1e9) as u64
+            && self.class().0 != contact_class::FALSE_ALARM
+            && self.recent_hits >= cfg.unobserved_min_hits
+    }
+
     /// Confirmed, detected in `BOAT_MIN_HITS` of its last `BOAT_HIT_WINDOW` maps, at least
     /// `BOAT_MIN_SPEED_MPS` with its velocity known to `BOAT_SPEED_SIGMA_MPS` (the velocity of a
     /// bank piece is its blob changing shape, and loose), and standing at least
@@ -385,17 +398,16 @@ impl Tracker {
         let dt = self.last_stamp.map_or(0.0, |p| (stamp - p) as f64 * 1e-9);
         self.last_stamp = Some(stamp);
 
-        let (object_hits, object_window) =
-            (self.cfg.unobserved_min_hits, self.cfg.unobserved_window);
         for t in &mut self.tracks {
             predict(t, dt, self.cfg.accel_sigma);
-            // Once detected like a real object (see `unobserved_min_hits`), not like wave glint,
-            // for as long as it is guided: a track that went back and forth between the two
-            // centroids, 2-3 m apart for a boat seen from astern, fell out of its own gate and
-            // its speed swung by 2 m/s (follow_boat, seed 38, 38-76 s).
-            t.placed_by_fresh_cells = guided(t)
-                && (t.placed_by_fresh_cells
-                    || (t.history & window_mask(object_window)).count_ones() >= object_hits);
+            // Once it has a real object's record, for as long as it is guided: a track that went
+            // back and forth between the two centroids, 2-3 m apart for a boat seen from astern,
+            // fell out of its own gate and its speed swung by 2 m/s (follow_boat, seed 38,
+            // 38-76 s). The record includes the 2 s seen: a glint track 0.8 s old is already
+            // detected in 5 of its 8 maps, and one that took fresh cells walked to 6 m/s as a
+            // "boat" and blocked every arc (seed 38, 217 s).
+            t.placed_by_fresh_cells =
+                guided(t) && (t.placed_by_fresh_cells || t.has_an_objects_record(&self.cfg));
         }
         let margin = self.cfg.guide_margin_m;
         // Only moving objects, which the map lags behind, and never what the classifier holds
@@ -484,13 +496,8 @@ impl Tracker {
                 }
                 None => {
                     t.misses += 1;
-                    let (class, _) = t.class();
-                    // The record up to the last detection: an object at the edge of the view is
-                    // missed there before it leaves coverage, and that is no evidence against it.
-                    let held = t.confirmed
-                        && t.last_hit_ns - t.born_ns >= coast_ns(self.cfg.unobserved_min_seen_s)
-                        && class != contact_class::FALSE_ALARM
-                        && t.recent_hits >= self.cfg.unobserved_min_hits;
+                    let class = t.class().0;
+                    let held = t.has_an_objects_record(&self.cfg);
                     if held && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius) {
                         // A marker is anchored, and a slow estimate is mostly noise (partial
                         // detections at the edge of the view drag a buoy's track at ~1 m/s): out
