@@ -461,9 +461,17 @@ fn boat_seen_from_astern(
     (confirmed(&list), [0.0, transom(39)], first)
 }
 
+/// The tracker with cells seen standing high in this map taken (off by default).
+fn fresh_cells_on() -> TrackerConfig {
+    TrackerConfig {
+        guided_fresh_min_points: 4,
+        ..TrackerConfig::default()
+    }
+}
+
 #[test]
 fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
-    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), |_| false);
+    let (tracks, stern, first) = boat_seen_from_astern(fresh_cells_on(), |_| false);
     assert_eq!(tracks.len(), 1, "{tracks:?}");
     let c = tracks[0];
     assert_eq!(c.id, first);
@@ -471,12 +479,9 @@ fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
     let error = (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]);
     assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed:.2}");
     assert!(error < 1.0, "{error:.1} m off the transom");
-    // Placed by the hazard-weighted centroid, the track falls back into the smear and slows.
-    let off = TrackerConfig {
-        guided_fresh_min_points: 0,
-        ..TrackerConfig::default()
-    };
-    let (tracks, stern, _) = boat_seen_from_astern(off, |_| false);
+    // Off (the default), placed by the hazard-weighted centroid, the track falls back into the
+    // smear and slows.
+    let (tracks, stern, _) = boat_seen_from_astern(TrackerConfig::default(), |_| false);
     let c = tracks[0];
     let speed = c.velocity[0].hypot(c.velocity[1]);
     let lag = stern[1] - c.position[1];
@@ -487,9 +492,8 @@ fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
 fn a_track_placed_at_its_hull_stays_there_through_a_stretch_of_missed_maps() {
     // Every other map misses the boat for 2 s (4 of 8 maps detected, a glint track's record
     // for taking fresh cells); it is still placed at its transom afterwards.
-    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), |k| {
-        (20..30).contains(&k) && k % 2 == 1
-    });
+    let (tracks, stern, first) =
+        boat_seen_from_astern(fresh_cells_on(), |k| (20..30).contains(&k) && k % 2 == 1);
     assert_eq!(tracks.len(), 1, "{tracks:?}");
     let c = tracks[0];
     assert_eq!(c.id, first);
