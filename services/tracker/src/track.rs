@@ -441,10 +441,16 @@ impl Tracker {
         let params = self.cfg.detect_params(&g);
         self.detector
             .detect(&g, cells, &params, &mut self.detections);
-        // A weak component needs some size to stand for a boat rather than a speck of noise.
+        // A weak component needs some size to stand for a boat rather than a speck of noise,
+        // and a cell that joins at the lifted threshold at least: cells seen high in this map
+        // alone (spray, wave mismatches) walked a boat's track off onto the water near the own
+        // boat (follow_boat, seed 38, 190 s, with `guided_fresh_min_points` set). Without fresh
+        // cells every component has such a cell.
         let thr = self.cfg.hazard_threshold;
-        self.detections
-            .retain(|d| d.peak_hazard >= thr || d.cells >= GUIDED_MIN_CELLS);
+        let lifted = self.cfg.guided_lifted_hazard_threshold;
+        self.detections.retain(|d| {
+            d.peak_hazard >= thr || (d.cells >= GUIDED_MIN_CELLS && d.peak_hazard >= lifted)
+        });
         self.classes.clear();
         for d in &self.detections {
             self.classes.push(self.model.classify(d));
