@@ -122,7 +122,7 @@ fn main() -> anyhow::Result<()> {
             let (along, across) = frame(d.position);
             if along.hypot(across) <= args.radius {
                 println!(
-                    "   det along {along:6.1} across {across:6.1}  cells {:4} peak {:3} height {:.1} extent {:.1}x{:.1}  fresh {:3} along {:6.1} observed {:3}",
+                    "   det along {along:6.1} across {across:6.1}  cells {:4} peak {:3} height {:.1} extent {:.1}x{:.1}  fresh {:3} along {:6.1}",
                     d.cells,
                     d.peak_hazard,
                     d.height,
@@ -130,7 +130,6 @@ fn main() -> anyhow::Result<()> {
                     d.extent[1],
                     d.fresh_cells,
                     frame(d.fresh_position).0,
-                    d.observed_cells,
                 );
             }
         }

@@ -22,8 +22,8 @@
 //! while the smear of earlier frames astern held 60-120. Inside a window that asks for it
 //! ([`GuideWindow::fresh`], with [`GuideThresholds::fresh_min_points`] set; the tracker leaves it
 //! off by default) a cell observed in this very map by a few points standing that high therefore
-//! joins at any hazard, and the component also reports the
-//! centroid of such cells ([`Detection::fresh_position`]): where the hull is now.
+//! joins at any hazard, and the component also reports the centroid of such cells
+//! ([`Detection::fresh_position`]): where the hull is now.
 
 use messages::{GridGeometry, MapCell};
 
@@ -53,10 +53,6 @@ pub struct Detection {
     /// cells, and the position is `position`.
     pub fresh_cells: u32,
     pub fresh_position: [f64; 2],
-    /// Cells observed in this map at all: 0 when the heads did not look there again since the
-    /// last map (the world map fuses one head's frame at a time), so the component is the last
-    /// map's, decayed.
-    pub observed_cells: u32,
 }
 
 /// What a cell inside a guide window needs to join a component (see [`Detector::guide`]).
@@ -242,7 +238,6 @@ impl Detector {
             let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
             let (mut hmax, mut peak) = (i16::MIN, 0u8);
             let (mut fresh_n, mut fresh_x, mut fresh_y) = (0u32, 0f64, 0f64);
-            let mut observed_n = 0u32;
             while let Some(i) = self.stack.pop() {
                 let i = i as usize;
                 let (x, y) = (i % w, i / w);
@@ -262,7 +257,6 @@ impl Detector {
                 r1 = r1.max(y);
                 hmax = hmax.max(c.max_height_cm);
                 peak = peak.max(c.hazard);
-                observed_n += (c.observed > 0) as u32;
                 if fresh(i) {
                     fresh_n += 1;
                     fresh_x += fx;
@@ -307,7 +301,6 @@ impl Detector {
                 peak_hazard: peak,
                 cells: n,
                 fresh_cells: fresh_n,
-                observed_cells: observed_n,
                 fresh_position: if fresh_n > 0 {
                     at(fresh_x / fresh_n as f64, fresh_y / fresh_n as f64)
                 } else {

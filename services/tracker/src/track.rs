@@ -190,8 +190,9 @@ struct Track {
     /// Detections in the `unobserved_window` maps up to and including the last one.
     recent_hits: u32,
     confirmed: bool,
-    /// Guided and detected like a real object this map: its guide window takes cells seen
-    /// standing high in this map, and it is placed at them ([`measured_at`]).
+    /// Guided, and had a real object's record at some map since it became guided: its guide
+    /// window takes cells seen standing high in this map, and it is placed at them
+    /// ([`measured_at`]).
     placed_by_fresh_cells: bool,
     /// Summed class posteriors, indexed by contact class.
     class_score: [f32; 5],
@@ -646,20 +647,23 @@ impl Tracker {
         for (ti, t) in self.tracks.iter().enumerate() {
             let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
             for (di, d) in self.detections.iter().enumerate() {
+                let d2_at = |z: [f64; 2]| {
+                    let r = measurement_noise(&self.cfg, own, z);
+                    let si = (h * t.p * h.transpose() + r).try_inverse()?;
+                    let y = Vector2::new(z[0] - t.x[0], z[1] - t.x[1]);
+                    Some((y.transpose() * si * y)[0])
+                };
                 // In the gate by either centroid: a track placed by the hazard-weighted one meets
                 // its first fresh centroid metres ahead.
-                let v = [measured_at(t, d), d.position]
+                let z = measured_at(t, d);
+                let fresh = if z == d.position { None } else { d2_at(z) };
+                let Some(v) = [d2_at(d.position), fresh]
                     .into_iter()
-                    .filter_map(|z| {
-                        let r = measurement_noise(&self.cfg, own, z);
-                        let si = (h * t.p * h.transpose() + r).try_inverse()?;
-                        let y = Vector2::new(z[0] - t.x[0], z[1] - t.x[1]);
-                        Some((y.transpose() * si * y)[0])
-                    })
-                    .fold(f64::INFINITY, f64::min);
-                if !v.is_finite() {
+                    .flatten()
+                    .reduce(f64::min)
+                else {
                     continue;
-                }
+                };
                 d2[ti * nd + di] = v;
                 if v < self.cfg.gate_chi2 {
                     m[(ti, di)] = (v * SCALE) as i64;
