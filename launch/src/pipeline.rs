@@ -9,6 +9,7 @@
 //! `launch/sets/`, referenced by absolute path so there is one source of truth for them.
 
 use crate::session::checkout_file;
+use anyhow::Context as _;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -129,6 +130,10 @@ fn toml_list(items: &[String]) -> String {
 pub fn write(spec: &PipelineSpec, dir: &Path) -> anyhow::Result<WrittenSet> {
     let dir = std::path::absolute(dir)?;
     std::fs::create_dir_all(&dir)?;
+    if let Some(rec) = &spec.record {
+        recorder::output::remove_with_parts(&rec.file)
+            .with_context(|| format!("cannot replace {}", rec.file.display()))?;
+    }
     let sim = sim_program(&dir)?;
     let heads = if spec.heads.is_empty() {
         default_heads(&spec.scenario)?

@@ -11,6 +11,7 @@ pub mod bench;
 /// The Foxglove views live in the shared `views` crate (the live bridge encodes the same way).
 pub use views as foxglove;
 pub mod mcap;
+pub mod output;
 pub mod recording;
 
 pub use mcap::{Compression, WriteError, WriterOptions};

@@ -9,7 +9,7 @@ use recorder::foxglove::View;
 use recorder::{Compression, Recording, RecordingOptions, WriterOptions};
 use runtime::{Input, Ports, Receive, Service, Subscriber, Wake};
 use std::fs::File;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 #[derive(Parser)]
@@ -139,8 +139,15 @@ fn main() -> anyhow::Result<()> {
         args.topics.clone()
     };
     let mut service = Service::start("recorder")?;
-    let file =
-        File::create(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    let (file, out) = recorder::output::create_unused(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    if out != args.out {
+        tracing::warn!(
+            kept = %args.out.display(),
+            out = %out.display(),
+            "a recording is there already (a restart?); recording to the next part"
+        );
+    }
     let opts = RecordingOptions {
         writer: WriterOptions {
             bulk_compression: args.image_compression,
@@ -162,7 +169,7 @@ fn main() -> anyhow::Result<()> {
                 })??;
         taps.push(t);
     }
-    tracing::info!(out = %args.out.display(), topics = names.len(), "recording");
+    tracing::info!(out = %out.display(), topics = names.len(), "recording");
 
     let inputs: Vec<Input<'_>> = taps.iter().map(|t| t.input()).collect();
     let shutdown = service.shutdown().clone();
@@ -220,14 +227,14 @@ fn main() -> anyhow::Result<()> {
             .context("cannot finish the recording")?,
         Some(_) => None,
     };
-    report(&rec, finished.as_ref(), &args);
+    report(&rec, finished.as_ref(), &out, args.json);
     match failure {
-        Some(e) => Err(e.context(format!("recording to {} stopped", args.out.display()))),
+        Some(e) => Err(e.context(format!("recording to {} stopped", out.display()))),
         None => Ok(()),
     }
 }
 
-fn report(rec: &Recording<File>, finished: Option<&recorder::mcap::Stats>, args: &Args) {
+fn report(rec: &Recording<File>, finished: Option<&recorder::mcap::Stats>, out: &Path, json: bool) {
     let stats: Vec<_> = rec.stats().cloned().collect();
     for s in &stats {
         let warn = if s.dropped > 0 { "  <-- DROPS" } else { "" };
@@ -239,7 +246,7 @@ fn report(rec: &Recording<File>, finished: Option<&recorder::mcap::Stats>, args:
     let bytes = finished.map_or(rec.position(), |f| f.bytes);
     eprintln!(
         "{}: {} bytes, {}",
-        args.out.display(),
+        out.display(),
         bytes,
         if finished.is_some() {
             "finished"
@@ -247,7 +254,7 @@ fn report(rec: &Recording<File>, finished: Option<&recorder::mcap::Stats>, args:
             "NOT finished"
         }
     );
-    if args.json {
+    if json {
         let topics: Vec<_> = stats
             .iter()
             .map(|s| {
@@ -257,7 +264,7 @@ fn report(rec: &Recording<File>, finished: Option<&recorder::mcap::Stats>, args:
             .collect();
         println!(
             "{}",
-            serde_json::json!({"file": args.out, "bytes": bytes, "finished": finished.is_some(), "topics": topics})
+            serde_json::json!({"file": out, "bytes": bytes, "finished": finished.is_some(), "topics": topics})
         );
     }
 }

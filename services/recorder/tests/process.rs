@@ -89,3 +89,37 @@ fn recorded_counts_and_the_python_reader() {
     assert_eq!(v["total"], 200);
     assert!(v["chunks"].as_u64().unwrap() >= 2, "{v}");
 }
+
+#[test]
+fn a_restarted_recorder_keeps_the_recording_it_was_given_and_writes_the_next_part() {
+    let d = Domain::new();
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("run.mcap");
+    let mut sender = Sender::new(&d);
+    let first = start_recorder(&d, &sender, &file, &[]);
+    sender.send_all();
+    std::thread::sleep(Duration::from_millis(200));
+    let report = stop_recorder(first);
+    check_report(&report);
+    assert_eq!(report["file"], file.display().to_string());
+    let recorded = std::fs::read(&file).unwrap();
+
+    // The same command again, as a supervisor's restart runs it.
+    let second = start_recorder(&d, &sender, &file, &[]);
+    sender.send_all();
+    std::thread::sleep(Duration::from_millis(200));
+    let report = stop_recorder(second);
+    // The part holds the second batch (and each topic's last sample before it, which the
+    // publishers' history hands a late subscriber).
+    assert_eq!(report["finished"], true);
+    for t in report["topics"].as_array().unwrap() {
+        assert!(t["messages"].as_u64().unwrap() >= 5, "{report}");
+    }
+    let part = dir.path().join("run.1.mcap");
+    assert_eq!(report["file"], part.display().to_string());
+    assert!(std::fs::read(&part).unwrap().len() > 1000);
+    assert!(
+        std::fs::read(&file).unwrap() == recorded,
+        "the first recording was changed"
+    );
+}
