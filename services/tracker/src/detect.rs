@@ -20,8 +20,8 @@
 //! and perception, whose temporal filter is anchored to the world, gives a first sighting little
 //! hazard: its cells held 20-40 of 255 under 75-140 points 2 m high (follow_boat, seed 42, 248 s),
 //! while the smear of earlier frames astern held 60-120. Inside a window that asks for it
-//! ([`GuideWindow::fresh`], with [`GuideThresholds::fresh_min_points`] set; the tracker leaves it
-//! off by default) a cell observed in this very map by a few points standing that high therefore
+//! ([`GuideWindow::fresh`], with [`GuideThresholds::fresh_min_points`] set, as the tracker does by
+//! default) a cell observed in this very map by a few points standing that high therefore
 //! joins at any hazard, and the component also reports the centroid of such cells
 //! ([`Detection::fresh_position`]): where the hull is now.
 

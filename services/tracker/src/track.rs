@@ -119,11 +119,10 @@ impl Default for TrackerConfig {
             // hazard; a metre is above any wave of the sets and below any hull.
             guided_lifted_hazard_threshold: 64,
             guided_lifted_height_m: 1.0,
-            // Off: in closed loop it steadied the followed boat's track on some runs and let it
-            // walk off onto spray near the own boat on others (ARCHITECTURE.md). 4 is the value
-            // measured: a transom 15-20 m astern gave 45-140 points a cell, a stray mismatch one
-            // or two.
-            guided_fresh_min_points: 0,
+            // A transom 15-20 m astern gave 45-140 points a cell, a stray mismatch one or two.
+            // Measured in closed loop on follow_boat's seven seeds and the other scenarios
+            // (ARCHITECTURE.md); the sequencer's follow reference assumes the placement it gives.
+            guided_fresh_min_points: 4,
             guide_margin_m: 2.0,
             min_cells: 1,
             link_m: 0.5,

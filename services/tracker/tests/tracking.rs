@@ -455,17 +455,17 @@ fn boat_seen_from_astern(
     (confirmed(&list), [0.0, transom(39)], first)
 }
 
-/// The tracker with cells seen standing high in this map taken (off by default).
-fn fresh_cells_on() -> TrackerConfig {
+/// The tracker without cells seen standing high in this map (taken by default).
+fn fresh_cells_off() -> TrackerConfig {
     TrackerConfig {
-        guided_fresh_min_points: 4,
+        guided_fresh_min_points: 0,
         ..TrackerConfig::default()
     }
 }
 
 #[test]
 fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
-    let (tracks, stern, first) = boat_seen_from_astern(fresh_cells_on(), |_| false);
+    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), |_| false);
     assert_eq!(tracks.len(), 1, "{tracks:?}");
     let c = tracks[0];
     assert_eq!(c.id, first);
@@ -473,9 +473,8 @@ fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
     let error = (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]);
     assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed:.2}");
     assert!(error < 1.0, "{error:.1} m off the transom");
-    // Off (the default), placed by the hazard-weighted centroid, the track falls back into the
-    // smear and slows.
-    let (tracks, stern, _) = boat_seen_from_astern(TrackerConfig::default(), |_| false);
+    // Off, placed by the hazard-weighted centroid, the track falls back into the smear and slows.
+    let (tracks, stern, _) = boat_seen_from_astern(fresh_cells_off(), |_| false);
     let c = tracks[0];
     let speed = c.velocity[0].hypot(c.velocity[1]);
     let lag = stern[1] - c.position[1];
@@ -487,7 +486,7 @@ fn cells_seen_high_in_this_map_alone_do_not_carry_a_track_on() {
     // After the boat of `boat_seen_from_astern` is gone, only spray stays in its track's window:
     // 3 x 3 cells seen in every map by 20 points 1.5 m high, at a hazard of 20, drifting
     // north at 7 m/s. The track must not follow it.
-    let mut t = Tracker::new(fresh_cells_on(), model()).unwrap();
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
     let centre = |k: u64| -30.0 + 1.4 * k as f64;
@@ -516,8 +515,9 @@ fn cells_seen_high_in_this_map_alone_do_not_carry_a_track_on() {
 fn a_track_placed_at_its_hull_stays_there_through_a_stretch_of_missed_maps() {
     // Every other map misses the boat for 2 s (4 of 8 maps detected, a glint track's record
     // for taking fresh cells); it is still placed at its transom afterwards.
-    let (tracks, stern, first) =
-        boat_seen_from_astern(fresh_cells_on(), |k| (20..30).contains(&k) && k % 2 == 1);
+    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), |k| {
+        (20..30).contains(&k) && k % 2 == 1
+    });
     assert_eq!(tracks.len(), 1, "{tracks:?}");
     let c = tracks[0];
     assert_eq!(c.id, first);
