@@ -848,3 +848,31 @@ fn a_long_component_that_moves_like_a_boat_is_reported_a_boat() {
     // ... moving at 7 m/s, detected every map, it is a boat with its smear.
     assert_eq!(class_of_a_long_tall_blob(7.0), contact_class::BOAT);
 }
+
+/// A blob crossing 20 m ahead at 7 m/s, in every map for 1.2 s and then in one map of seven
+/// (wave glint), fed to a tracker with `cfg`; whether a confirmed track is on it at the end.
+fn glint_crossing_ahead_is_tracked(cfg: TrackerConfig) -> bool {
+    let mut t = Tracker::new(cfg, model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let at = |k: u64| [-20.0 + 1.4 * k as f64, 20.0];
+    for k in 0..30u64 {
+        let mut cells = open_water(&grid);
+        if k < 6 || k % 7 == 0 {
+            paint_hull_rim(&grid, &mut cells, at(k), [1.0, 0.0], 150);
+        }
+        feed(&mut t, grid, k, &cells, &mut list);
+    }
+    confirmed_near(&list, at(29), 6.0).is_some()
+}
+
+#[test]
+fn a_moving_track_close_by_in_view_that_is_seen_in_one_map_of_seven_is_dropped() {
+    assert!(!glint_crossing_ahead_is_tracked(TrackerConfig::default()));
+    // Without the rule each stray detection restarts the coast, and it blocks the boat's way.
+    let off = TrackerConfig {
+        in_view_min_hits: 0,
+        ..TrackerConfig::default()
+    };
+    assert!(glint_crossing_ahead_is_tracked(off));
+}
