@@ -43,6 +43,11 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let (cfg, model) = load_config(&args.config)?;
+    // What makes a cell fresh inside a guide window (see `detect`), to count on the footprint.
+    let fresh_rule = (
+        cfg.guided_fresh_min_points,
+        (cfg.guided_lifted_height_m * 100.0).round() as i16,
+    );
     let mut tracker = Tracker::new(cfg, model)?;
     let truths = read_all(
         &args.recording,
@@ -108,11 +113,13 @@ fn main() -> anyhow::Result<()> {
                 _ => "",
             }
         );
-        let foot = footprint(&header.grid, &cells, c, o.pose.yaw, o.extent);
+        let foot = footprint(&header.grid, &cells, c, o.pose.yaw, o.extent, fresh_rule);
         println!(
-            "   footprint {} cells: {} observed this map, hazard >= 96 {} >= 128 {} max {}, highest {:.1} m",
+            "   footprint {} cells: {} observed this map ({} by enough points, {} of them standing high: fresh), hazard >= 96 {} >= 128 {} max {}, highest {:.1} m",
             foot.cells,
             foot.observed,
+            foot.dense,
+            foot.fresh,
             foot.guided,
             foot.hazardous,
             foot.max_hazard,
@@ -206,6 +213,10 @@ fn contacts_equal(a: &ContactList, b: &ContactList) -> bool {
 struct Footprint {
     cells: u32,
     observed: u32,
+    /// Observed in this map by at least `guided_fresh_min_points` points, and of those, standing
+    /// `guided_lifted_height_m` high: what a guide window takes at any hazard.
+    dense: u32,
+    fresh: u32,
     /// Cells at the guided threshold (96) and at the detection threshold (128).
     guided: u32,
     hazardous: u32,
@@ -221,6 +232,7 @@ fn footprint(
     centre: [f64; 2],
     yaw: f64,
     extent: [f32; 3],
+    (fresh_min_points, lifted_height_cm): (u8, i16),
 ) -> Footprint {
     let (half_l, half_w) = (extent[0] as f64 / 2.0, extent[1] as f64 / 2.0);
     let reach = (half_l + ASTERN_M).hypot(half_w);
@@ -244,6 +256,9 @@ fn footprint(
             let cell = &cells[(row * g.width + col) as usize];
             f.cells += 1;
             f.observed += (cell.observed > 0) as u32;
+            let dense = fresh_min_points > 0 && cell.observed >= fresh_min_points;
+            f.dense += dense as u32;
+            f.fresh += (dense && cell.max_height_cm >= lifted_height_cm) as u32;
             f.guided += (cell.hazard >= 96) as u32;
             f.hazardous += (cell.hazard >= 128) as u32;
             f.max_hazard = f.max_hazard.max(cell.hazard);
