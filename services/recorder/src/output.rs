@@ -17,11 +17,7 @@ pub fn create_unused(path: &Path) -> io::Result<(File, PathBuf)> {
         return Ok((File::create(path)?, path.to_path_buf()));
     }
     for n in 0..=MAX_PARTS {
-        let candidate = if n == 0 {
-            path.to_path_buf()
-        } else {
-            part_path(path, n)
-        };
+        let candidate = part_path(path, n);
         match OpenOptions::new()
             .write(true)
             .create_new(true)
@@ -43,12 +39,7 @@ pub fn create_unused(path: &Path) -> io::Result<(File, PathBuf)> {
 /// own.
 pub fn remove_with_parts(path: &Path) -> io::Result<()> {
     for n in 0..=MAX_PARTS {
-        let p = if n == 0 {
-            path.to_path_buf()
-        } else {
-            part_path(path, n)
-        };
-        match std::fs::remove_file(&p) {
+        match std::fs::remove_file(part_path(path, n)) {
             Ok(()) => {}
             Err(e) if e.kind() == io::ErrorKind::NotFound && n > 0 => return Ok(()),
             Err(e) if e.kind() == io::ErrorKind::NotFound => {}
@@ -58,8 +49,12 @@ pub fn remove_with_parts(path: &Path) -> io::Result<()> {
     Ok(())
 }
 
-/// `dir/run.mcap` -> `dir/run.<n>.mcap` (`dir/run` -> `dir/run.<n>`).
+/// Part `n` of a recording: `dir/run.mcap` itself for 0, else `dir/run.<n>.mcap` (`dir/run.<n>`
+/// without an extension).
 fn part_path(path: &Path, n: u32) -> PathBuf {
+    if n == 0 {
+        return path.to_path_buf();
+    }
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
     let name = match path.extension() {
         Some(ext) => format!("{stem}.{n}.{}", ext.to_string_lossy()),
@@ -74,10 +69,9 @@ mod tests {
 
     #[test]
     fn an_existing_recording_is_kept_and_the_next_part_is_written_beside_it() {
-        let dir = std::env::temp_dir().join(format!("recorder-output-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let run = dir.join("run.mcap");
-        let _ = std::fs::remove_file(&run);
         let (_, first) = create_unused(&run).unwrap();
         assert_eq!(first, run);
         // Nothing written yet: a restart reuses the empty file.
@@ -93,7 +87,6 @@ mod tests {
             "the first part must survive"
         );
         remove_with_parts(&run).unwrap();
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
-        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(std::fs::read_dir(dir).unwrap().count(), 0);
     }
 }

@@ -524,19 +524,23 @@ impl Tracker {
                 }
                 None => {
                     t.misses += 1;
-                    t.flickering = t.confirmed
+                    let speed = t.x[2].hypot(t.x[3]);
+                    let glint_record = t.confirmed
                         && (t.history & unobserved_mask).count_ones() < self.cfg.in_view_min_hits
-                        && t.x[2].hypot(t.x[3]) >= ANCHORED_MAX_SPEED_MPS
-                        && (t.x[0] - own[0]).hypot(t.x[1] - own[1]) <= self.cfg.in_view_max_range_m
-                        && observed_near(&g, cells, t.x[0], t.x[1], coverage_radius);
-                    let class = t.class().0;
+                        && speed >= ANCHORED_MAX_SPEED_MPS
+                        && (t.x[0] - own[0]).hypot(t.x[1] - own[1]) <= self.cfg.in_view_max_range_m;
                     let held = t.has_an_objects_record(&self.cfg);
-                    if held && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius) {
+                    // Whether the sensors covered the prediction this map, looked up only when
+                    // one of the two rules asks.
+                    let covered = (glint_record || held)
+                        .then(|| observed_near(&g, cells, t.x[0], t.x[1], coverage_radius));
+                    t.flickering = glint_record && covered == Some(true);
+                    if held && covered == Some(false) {
                         // A marker is anchored, and a slow estimate is mostly noise (partial
                         // detections at the edge of the view drag a buoy's track at ~1 m/s): out
                         // of view such a track stays where it was last placed instead of drifting.
-                        let speed = t.x[2].hypot(t.x[3]);
-                        if class == contact_class::CHANNEL_MARKER || speed < ANCHORED_MAX_SPEED_MPS
+                        if t.class().0 == contact_class::CHANNEL_MARKER
+                            || speed < ANCHORED_MAX_SPEED_MPS
                         {
                             t.x[2] = 0.0;
                             t.x[3] = 0.0;
