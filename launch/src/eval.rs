@@ -405,10 +405,7 @@ fn print_report(r: &serde_json::Value) {
         r["wall_s"].as_f64().unwrap_or(0.0),
         r["frames_per_s"].as_f64().unwrap_or(0.0)
     );
-    let f = |v: &serde_json::Value, scale: f64| {
-        v.as_f64()
-            .map_or("-".to_string(), |x| format!("{:.2}", x * scale))
-    };
+    let f = fixed2;
     println!(
         "{:>8} {:>9} {:>9} {:>14} {:>10} {:>14}",
         "range m", "pixels", "density%", "median |err| m", "rms m", "sigma_Z th. m"
@@ -452,26 +449,7 @@ fn print_report(r: &serde_json::Value) {
             f(&b["camera_to_command_ms"]["p99"], 1.0),
             b["confirmed_contacts"].as_array().map_or(0, |c| c.len()),
         );
-        let t = &b["tracking"];
-        println!(
-            "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min, of them reported as objects {}, {}/min; {} on the shore), moving-boat speed error p50 {} % ({} % while detected), heading error p50 {} deg, along/cross 3-sigma ratio {}",
-            t["boats_within_100m"]["detected"],
-            t["boats_within_100m"]["frames"],
-            in_view(&t["boats_within_100m_in_view"]),
-            t["markers_within_60m"]["detected"],
-            t["markers_within_60m"]["frames"],
-            in_view(&t["markers_within_60m_in_view"]),
-            t["confirmed_tracks"],
-            t["false_tracks"],
-            f(&t["false_tracks_per_min"], 1.0),
-            t["false_object_tracks"],
-            f(&t["false_object_tracks_per_min"], 1.0),
-            t["shore_tracks"],
-            f(&t["moving_speed_error_pct"]["p50"], 1.0),
-            f(&t["moving_speed_error_pct"]["detected_p50"], 1.0),
-            f(&t["moving_heading_error_deg"]["p50"], 1.0),
-            f(&t["along_cross_3sigma_ratio"], 1.0),
-        );
+        println!("{}", tracking_line(&b["tracking"]));
         println!(
             "overview picture: {}",
             r["overview"].as_str().unwrap_or("-")
@@ -488,6 +466,36 @@ fn print_report(r: &serde_json::Value) {
             f(&s["max_processing_ms"], 1.0)
         );
     }
+}
+
+/// The one-line summary of a run's tracking score (`TrackingScore::report`).
+pub(crate) fn tracking_line(t: &serde_json::Value) -> String {
+    let f = fixed2;
+    format!(
+        "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min, of them reported as objects {}, {}/min; {} on the shore), moving-boat speed error p50 {} % ({} % while detected), heading error p50 {} deg, along/cross 3-sigma ratio {}",
+        t["boats_within_100m"]["detected"],
+        t["boats_within_100m"]["frames"],
+        in_view(&t["boats_within_100m_in_view"]),
+        t["markers_within_60m"]["detected"],
+        t["markers_within_60m"]["frames"],
+        in_view(&t["markers_within_60m_in_view"]),
+        t["confirmed_tracks"],
+        t["false_tracks"],
+        f(&t["false_tracks_per_min"], 1.0),
+        t["false_object_tracks"],
+        f(&t["false_object_tracks_per_min"], 1.0),
+        t["shore_tracks"],
+        f(&t["moving_speed_error_pct"]["p50"], 1.0),
+        f(&t["moving_speed_error_pct"]["detected_p50"], 1.0),
+        f(&t["moving_heading_error_deg"]["p50"], 1.0),
+        f(&t["along_cross_3sigma_ratio"], 1.0),
+    )
+}
+
+/// A number scaled, with two decimals, or "-".
+fn fixed2(v: &serde_json::Value, scale: f64) -> String {
+    v.as_f64()
+        .map_or("-".to_string(), |x| format!("{:.2}", x * scale))
 }
 
 /// " (held within 5 m over 40.0-72.0 s, RMS 3.40 m)" for a follow run's longest held stretch.

@@ -15,6 +15,7 @@ mod observe;
 mod overview;
 mod pipeline;
 mod regress;
+mod retrack;
 mod session;
 mod supervisor;
 
@@ -48,6 +49,8 @@ enum Cmd {
     Set(pipeline::SetArgs),
     /// Replay a short recording through every service and compare with committed expectations.
     Regress(regress::RegressArgs),
+    /// Run the tracker again over a recording's world maps and score it against the recorded truth.
+    Retrack(retrack::RetrackArgs),
     /// Start a process set from a launch file and supervise it until `usv down` or Ctrl-C.
     Up { set: PathBuf },
     /// Stop the running set: SIGTERM, grace period, SIGKILL, then sweep stale shared memory.
@@ -154,6 +157,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Demo(args) => demo::run(args),
         Cmd::Eval(args) => eval::run(args),
         Cmd::Regress(args) => regress::run(args),
+        Cmd::Retrack(args) => retrack::run(args),
         Cmd::Set(args) => pipeline::run_set(args),
         Cmd::Down => print_reply(call(Request::Down)?),
         Cmd::Ps { json } => match call(Request::Ps)? {

@@ -18,7 +18,7 @@ use clap::Parser;
 use messages::{ContactList, GroundTruth, MapCell, WorldMapHeader};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use tracker::{Model, Tracker, TrackerConfig};
+use tracker::Tracker;
 
 #[derive(Parser)]
 struct Args {
@@ -42,7 +42,8 @@ struct Args {
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let (cfg, model) = load_config(&args.config)?;
+    let (cfg, model) = tracker::config::load(&args.config)?;
+    let cfg = cfg.tracking;
     // What makes a cell fresh inside a guide window (see `detect`), to count on the footprint.
     let fresh_rule = (
         cfg.guided_fresh_min_points,
@@ -72,7 +73,9 @@ fn main() -> anyhow::Result<()> {
         tracker.update(&header, &cells, "retrack", &mut list)?;
         maps += 1;
         let stamp = header.hdr.stamp_ns;
-        let same = recorded.get(&stamp).map(|r| contacts_equal(r, &list));
+        let same = recorded
+            .get(&stamp)
+            .map(|r| tracker::eval::same_contacts(r, &list));
         if same == Some(false) {
             differ += 1;
         }
@@ -159,22 +162,6 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
-fn load_config(path: &Path) -> anyhow::Result<(TrackerConfig, Model)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-    let table: toml::Table = toml::from_str(&text)?;
-    let cfg: TrackerConfig = table
-        .get("tracking")
-        .cloned()
-        .unwrap_or_else(|| toml::Value::Table(Default::default()))
-        .try_into()?;
-    let model_path = table
-        .get("model")
-        .and_then(|v| v.as_str())
-        .context("no model in the config")?;
-    let model = Model::load(&path.parent().unwrap_or(Path::new(".")).join(model_path))?;
-    Ok((cfg, model))
-}
-
 /// Every message of `topic` by header stamp.
 fn read_all<T: Copy>(
     run: &Path,
@@ -192,19 +179,6 @@ fn read_all<T: Copy>(
         out.insert(stamp(&value), Box::new(value));
     }
     Ok(out)
-}
-
-fn contacts_equal(a: &ContactList, b: &ContactList) -> bool {
-    a.count == b.count
-        && a.contacts[..a.count as usize]
-            .iter()
-            .zip(&b.contacts[..b.count as usize])
-            .all(|(x, y)| {
-                x.id == y.id
-                    && x.class == y.class
-                    && x.position == y.position
-                    && x.confirmed == y.confirmed
-            })
 }
 
 /// What the map holds on an object's footprint: its length and width around its centre, and

@@ -115,15 +115,8 @@ fn shore_test(world: &World) -> anyhow::Result<impl Fn(f64, f64) -> Option<f64> 
 
 /// Examples from recorded world maps: `dir/<scenario>/run.mcap` for scenarios of `scenarios`.
 fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
-    let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../launch/sets/tracker.toml"),
-    )?;
-    let table: toml::Table = toml::from_str(&text)?;
-    let cfg: TrackerConfig = table
-        .get("tracking")
-        .cloned()
-        .context("launch/sets/tracker.toml has no [tracking]")?
-        .try_into()?;
+    let sets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../launch/sets/tracker.toml");
+    let cfg: TrackerConfig = tracker::config::load(&sets)?.0.tracking;
     let mut runs: Vec<PathBuf> = std::fs::read_dir(dir)
         .with_context(|| format!("{}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path().join("run.mcap")))

@@ -96,6 +96,18 @@ pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f6
     out
 }
 
+/// Whether two contact lists report the same contacts (id, class, position, confirmation), in
+/// the same order: a tracker run again over a recording's maps against the recorded one.
+pub fn same_contacts(a: &ContactList, b: &ContactList) -> bool {
+    a.count == b.count
+        && a.as_slice().iter().zip(b.as_slice()).all(|(x, y)| {
+            x.id == y.id
+                && x.class == y.class
+                && x.position == y.position
+                && x.confirmed == y.confirmed
+        })
+}
+
 /// Accumulates along- and cross-track errors and sigmas over a run for the paper's 3-sigma RMS
 /// ratio (along / cross; 1.65 for position in the Hammerhead following run). Only frames in which
 /// the track had a detection count: a prediction held out of view grows its covariance in every

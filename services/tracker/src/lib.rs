@@ -13,6 +13,7 @@
 pub mod bench;
 pub mod classify;
 pub mod clutter;
+pub mod config;
 pub mod detect;
 pub mod eval;
 pub mod track;

@@ -8,11 +8,11 @@
 use anyhow::Context;
 use messages::{topics, ContactList};
 use runtime::Service;
-use serde::Deserialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
-use tracker::{Model, Tracker, TrackerConfig};
+use tracker::config::load;
+use tracker::Tracker;
 
 #[derive(clap::Parser)]
 #[command(
@@ -39,33 +39,6 @@ enum Command {
         #[arg(long)]
         quick: bool,
     },
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Config {
-    /// Contact model (JSON), relative to the config file.
-    model: PathBuf,
-    #[serde(default = "default_deadline")]
-    input_deadline_ms: u64,
-    #[serde(default)]
-    tracking: TrackerConfig,
-}
-
-fn default_deadline() -> u64 {
-    1000
-}
-
-fn load(config: &Path) -> anyhow::Result<(Config, Model)> {
-    let cfg: Config = runtime::config::load(config)?;
-    let path = if cfg.model.is_absolute() {
-        cfg.model.clone()
-    } else {
-        config.parent().unwrap_or(Path::new(".")).join(&cfg.model)
-    };
-    let model =
-        Model::load(&path).with_context(|| format!("configuration {}", config.display()))?;
-    Ok((cfg, model))
 }
 
 fn main() -> ExitCode {
