@@ -145,3 +145,142 @@ pub fn retrack(
         "replayed": replayed.report(minutes),
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use messages::{truth_class, GridGeometry, Header, Pose, TruthObject};
+    use recorder::recording::{Recording, RecordingOptions};
+
+    const MAPS: u64 = 15;
+
+    fn sets_config() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("sets/tracker.toml")
+    }
+
+    /// A recording of `MAPS` world maps at 5 a second, the own boat at the origin: a moored boat
+    /// 40 m north seen in every map, and 30 m east one frame's stereo mismatch the map keeps from
+    /// map 2 on without the heads seeing it again. The recorded contact lists are empty.
+    fn write_recording(path: &Path) {
+        let file = std::fs::File::create(path).unwrap();
+        let mut rec = Recording::new(file, RecordingOptions::default()).unwrap();
+        let truth_topic = rec
+            .add_topic::<GroundTruth, ()>(topics::GROUND_TRUTH.name, size_of::<GroundTruth>())
+            .unwrap();
+        let map_topic = rec
+            .add_topic::<[MapCell], WorldMapHeader>(topics::WORLD_MAP.name, size_of::<MapCell>())
+            .unwrap();
+        let contacts_topic = rec
+            .add_topic::<ContactList, ()>(topics::CONTACTS.name, size_of::<ContactList>())
+            .unwrap();
+        let grid = GridGeometry {
+            width: 200,
+            height: 200,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        for k in 0..MAPS {
+            let stamp = 1_000_000_000 + k * 200_000_000;
+            let mut truth = Box::<GroundTruth>::default();
+            truth.hdr = Header::new(k, stamp, "sim");
+            truth.object_count = 1;
+            truth.objects[0] = TruthObject {
+                id: 7,
+                class: truth_class::BOAT,
+                extent: [6.0, 2.5, 1.5],
+                ..Default::default()
+            };
+            truth.objects[0].pose.position = [0.0, 40.0, 0.0];
+            rec.write(truth_topic, stamp, &(), &*truth).unwrap();
+
+            let water = MapCell {
+                observed: 1,
+                ..Default::default()
+            };
+            let mut cells = vec![water; grid.cell_count()];
+            for row in 0..grid.height {
+                for col in 0..grid.width {
+                    let [x, y] = grid.cell_center(col, row);
+                    let cell = &mut cells[(row * grid.width + col) as usize];
+                    if x.abs() <= 1.25 && (y - 40.0).abs() <= 3.0 {
+                        *cell = MapCell {
+                            hazard: 220,
+                            max_height_cm: 150,
+                            observed: 6,
+                            ..Default::default()
+                        };
+                    } else if k >= 2 && (x - 30.0).abs() <= 1.0 && y.abs() <= 0.75 {
+                        *cell = MapCell {
+                            hazard: 200,
+                            max_height_cm: 120,
+                            observed: u8::from(k == 2) * 3,
+                            ..Default::default()
+                        };
+                    }
+                }
+            }
+            let header = WorldMapHeader {
+                hdr: Header::new(k, stamp, "mapper"),
+                grid,
+                vessel: Pose::default(),
+                fused: k,
+            };
+            rec.write(map_topic, stamp + 1, &header, &cells[..])
+                .unwrap();
+
+            let mut list = Box::<ContactList>::default();
+            list.hdr = Header::new(k, stamp, "tracker");
+            rec.write(contacts_topic, stamp + 2, &(), &*list).unwrap();
+        }
+        rec.finish().unwrap();
+    }
+
+    #[test]
+    fn the_tracker_run_again_finds_the_boat_the_recording_missed_and_no_held_mismatch() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run.mcap");
+        write_recording(&run);
+        let r = retrack(&run, &sets_config(), None).unwrap();
+        assert_eq!(r["maps"], MAPS);
+        assert_eq!(r["recorded"]["boats_within_100m"]["frames"], MAPS);
+        assert_eq!(r["recorded"]["boats_within_100m"]["detected"], 0);
+        // Confirmed on its third map, then every map.
+        assert_eq!(r["replayed"]["boats_within_100m"]["detected"], MAPS - 2);
+        // Its tentative track is listed from the first map on.
+        assert_eq!(r["maps_differing"], MAPS);
+        assert_eq!(r["replayed"]["false_tracks"], 0);
+
+        // Counting detections the map holds from older observations confirms the mismatch.
+        let text = std::fs::read_to_string(sets_config()).unwrap();
+        let model = sets_config()
+            .parent()
+            .unwrap()
+            .join("../../services/tracker/models/contact.json");
+        let text = text
+            .replace(
+                "model = \"../../services/tracker/models/contact.json\"",
+                &format!("model = {:?}", model.display().to_string()),
+            )
+            .replace(
+                "[tracking]",
+                "[tracking]\nconfirm_min_observed_cells = 0\nconfirm_peak_observed_cells = 0",
+            );
+        let off = dir.path().join("tracker.toml");
+        std::fs::write(&off, text).unwrap();
+        let r = retrack(&run, &off, None).unwrap();
+        assert_eq!(r["replayed"]["false_tracks"], 1);
+    }
+
+    #[test]
+    fn a_recording_without_world_maps_is_a_clear_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("empty.mcap");
+        let file = std::fs::File::create(&run).unwrap();
+        let mut rec = Recording::new(file, RecordingOptions::default()).unwrap();
+        rec.finish().unwrap();
+        let err = retrack(&run, &sets_config(), None).unwrap_err();
+        assert!(err.to_string().contains("holds no world maps"), "{err:#}");
+        let err = retrack(&dir.path().join("missing.mcap"), &sets_config(), None).unwrap_err();
+        assert!(format!("{err:#}").contains("missing.mcap"), "{err:#}");
+    }
+}

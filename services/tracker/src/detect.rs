@@ -53,6 +53,9 @@ pub struct Detection {
     /// cells, and the position is `position`.
     pub fresh_cells: u32,
     pub fresh_position: [f64; 2],
+    /// Cells at the detection threshold that were observed in this very map: evidence of now,
+    /// while a cell the map holds from older observations alone may be a mismatch frames old.
+    pub observed_cells: u32,
 }
 
 /// What a cell inside a guide window needs to join a component (see [`Detector::guide`]).
@@ -238,6 +241,7 @@ impl Detector {
             let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
             let (mut hmax, mut peak) = (i16::MIN, 0u8);
             let (mut fresh_n, mut fresh_x, mut fresh_y) = (0u32, 0f64, 0f64);
+            let mut observed_n = 0u32;
             while let Some(i) = self.stack.pop() {
                 let i = i as usize;
                 let (x, y) = (i % w, i / w);
@@ -257,6 +261,7 @@ impl Detector {
                 r1 = r1.max(y);
                 hmax = hmax.max(c.max_height_cm);
                 peak = peak.max(c.hazard);
+                observed_n += u32::from(c.observed > 0 && c.hazard >= thr);
                 if fresh(i) {
                     fresh_n += 1;
                     fresh_x += fx;
@@ -306,6 +311,7 @@ impl Detector {
                 } else {
                     at(mx, my)
                 },
+                observed_cells: observed_n,
             });
         }
     }

@@ -76,9 +76,11 @@ fn world_maps_become_contacts_and_bad_input_is_rejected() {
         if !bad {
             for y in 60..64 {
                 for x in 70..82 {
+                    // Seen in this very map, as the mapper marks a cell its local map covered.
                     cells[y * 100 + x] = MapCell {
                         hazard: 230,
                         max_height_cm: 150,
+                        observed: 8,
                         ..Default::default()
                     };
                 }

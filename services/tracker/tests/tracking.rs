@@ -876,3 +876,55 @@ fn a_moving_track_close_by_in_view_that_is_seen_in_one_map_of_seven_is_dropped()
     };
     assert!(glint_crossing_ahead_is_tracked(off));
 }
+
+/// Maps at which a track on a 1 m x 1.5 m blob 50 m ahead stands confirmed, over 6 maps: the
+/// blob at hazard 200 in every map, observed in this very map at the maps `observed` accepts (the
+/// others hold it from earlier observations only, as the world map holds a cell until the heads
+/// see it again).
+fn confirmed_maps(cfg: TrackerConfig, observed: impl Fn(u64) -> bool) -> Vec<u64> {
+    let mut t = Tracker::new(cfg, model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let mut out = Vec::new();
+    for k in 0..6u64 {
+        let mut cells = open_water(&grid);
+        let cell = MapCell {
+            hazard: 200,
+            max_height_cm: 80,
+            observed: if observed(k) { 3 } else { 0 },
+            ..Default::default()
+        };
+        paint_cells(&grid, &mut cells, cell, |[x, y]| {
+            (x - 0.5).abs() < 0.5 && (y - 50.0).abs() < 0.75
+        });
+        feed(&mut t, grid, k, &cells, &mut list);
+        if confirmed_near(&list, [0.5, 50.0], 2.0).is_some() {
+            out.push(k);
+        }
+    }
+    out
+}
+
+#[test]
+fn a_blob_the_map_holds_from_one_observation_is_not_confirmed_and_one_seen_in_every_map_is() {
+    let every_map = |_| true;
+    let once = |k| k == 0;
+    assert_eq!(
+        confirmed_maps(TrackerConfig::default(), every_map),
+        [2, 3, 4, 5]
+    );
+    // One frame's stereo mismatch the map keeps until the heads look there again.
+    assert_eq!(confirmed_maps(TrackerConfig::default(), once), [0u64; 0]);
+    // Seen in every other map: confirmed on its third sighting.
+    assert_eq!(
+        confirmed_maps(TrackerConfig::default(), |k| k % 2 == 0),
+        [4, 5]
+    );
+    // Without the rule the held blob is confirmed as soon as the one seen in every map.
+    let off = TrackerConfig {
+        confirm_min_observed_cells: 0,
+        confirm_peak_observed_cells: 0,
+        ..TrackerConfig::default()
+    };
+    assert_eq!(confirmed_maps(off, once), [2, 3, 4, 5]);
+}
