@@ -21,35 +21,75 @@ const REPLAYED_KEPT: usize = 8;
 
 #[derive(clap::Args)]
 pub struct RetrackArgs {
-    /// A recording with world maps, ground truth and contacts (`usv eval --closed-loop --record`).
-    recording: PathBuf,
+    /// Recordings with world maps, ground truth and contacts (`usv eval --closed-loop --record`),
+    /// e.g. one scenario's runs with several seeds.
+    #[arg(required = true)]
+    recordings: Vec<PathBuf>,
     /// Tracker settings: the `[tracking]` table and model of this config file.
     #[arg(long, default_value = "launch/sets/tracker.toml")]
     config: PathBuf,
     /// The recorded scenario, for its shore: tracks on land are shore contacts, not false tracks.
     #[arg(long)]
     scenario: Option<PathBuf>,
-    /// One JSON object (recorded and replayed reports) instead of lines.
+    /// One JSON object per recording (recorded and replayed reports) instead of lines.
     #[arg(long)]
     json: bool,
 }
 
 pub fn run(args: RetrackArgs) -> anyhow::Result<()> {
-    let report = retrack(&args.recording, &args.config, args.scenario.as_deref())?;
-    if args.json {
-        println!("{report}");
-        return Ok(());
+    let mut reports = Vec::new();
+    for recording in &args.recordings {
+        let report = retrack(recording, &args.config, args.scenario.as_deref())?;
+        if args.json {
+            println!("{report}");
+        } else {
+            println!(
+                "{}: {} maps over {:.1} s, {} with contacts that differ from the recording",
+                recording.display(),
+                report["maps"],
+                report["minutes"].as_f64().unwrap_or(0.0) * 60.0,
+                report["maps_differing"]
+            );
+            for which in ["recorded", "replayed"] {
+                println!("  {which}: {}", crate::eval::tracking_line(&report[which]));
+            }
+        }
+        reports.push(report);
     }
-    println!(
-        "{} maps over {:.1} s, {} with contacts that differ from the recording",
-        report["maps"],
-        report["minutes"].as_f64().unwrap_or(0.0) * 60.0,
-        report["maps_differing"]
-    );
-    for which in ["recorded", "replayed"] {
-        println!("{which}: {}", crate::eval::tracking_line(&report[which]));
+    if !args.json && reports.len() > 1 {
+        println!("all {} recordings:", reports.len());
+        for which in ["recorded", "replayed"] {
+            println!("  {which}: {}", totals_line(&reports, which));
+        }
     }
     Ok(())
+}
+
+/// False tracks and the detection targets summed over several recordings' reports.
+fn totals_line(reports: &[serde_json::Value], which: &str) -> String {
+    let sum = |key: &[&str]| -> u64 {
+        reports
+            .iter()
+            .map(|r| {
+                key.iter()
+                    .fold(&r[which], |v, k| &v[*k])
+                    .as_u64()
+                    .unwrap_or(0)
+            })
+            .sum()
+    };
+    let minutes: f64 = reports.iter().filter_map(|r| r["minutes"].as_f64()).sum();
+    let per_min = |n: u64| n as f64 / minutes.max(f64::MIN_POSITIVE);
+    let (false_tracks, objects) = (sum(&["false_tracks"]), sum(&["false_object_tracks"]));
+    format!(
+        "{false_tracks} false tracks over {minutes:.1} min ({:.1}/min; {objects} reported as objects, {:.1}/min), boats within 100 m {} of {} frames, markers/buoys within 60 m {} of {}",
+        per_min(false_tracks),
+        per_min(objects),
+        sum(&["boats_within_100m", "detected"]),
+        sum(&["boats_within_100m", "frames"]),
+        sum(&["markers_within_60m", "detected"]),
+        sum(&["markers_within_60m", "frames"]),
+    )
 }
 
 /// The recorded and the replayed contacts' tracking reports, and how many maps' contacts differ.
@@ -282,5 +322,20 @@ mod tests {
         assert!(err.to_string().contains("holds no world maps"), "{err:#}");
         let err = retrack(&dir.path().join("missing.mcap"), &sets_config(), None).unwrap_err();
         assert!(format!("{err:#}").contains("missing.mcap"), "{err:#}");
+    }
+
+    #[test]
+    fn several_recordings_are_summed_over_their_minutes() {
+        let report = |false_tracks: u64, minutes: f64| {
+            serde_json::json!({"minutes": minutes, "replayed": {
+                "false_tracks": false_tracks, "false_object_tracks": 1,
+                "boats_within_100m": {"detected": 9, "frames": 10},
+                "markers_within_60m": {"detected": 0, "frames": 0}}})
+        };
+        let line = totals_line(&[report(30, 2.0), report(6, 1.0)], "replayed");
+        assert!(
+            line.starts_with("36 false tracks over 3.0 min (12.0/min; 2 reported as objects, 0.7/min), boats within 100 m 18 of 20 frames"),
+            "{line}"
+        );
     }
 }
