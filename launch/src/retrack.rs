@@ -104,8 +104,9 @@ pub fn retrack(
     let mut recorded = TrackingScore::default();
     let mut replayed = TrackingScore::default();
     if let Some(scenario) = scenario {
+        let world = sim::scenario::load_world(scenario)?;
         for score in [&mut recorded, &mut replayed] {
-            if let Some(land) = TrackingScore::land_of(sim::scenario::load_world(scenario)?) {
+            if let Some(land) = TrackingScore::land_of(world.clone()) {
                 score.set_land(land);
             }
         }

@@ -625,6 +625,8 @@ impl Tracker {
             let (class, conf) = self.classes[di];
             let mut class_score = [0.0; 5];
             class_score[class as usize % 5] = conf;
+            // A peak detection also counts (see `counts_to_confirm`).
+            let (counts, peak) = counts_to_confirm(&self.cfg, d);
             self.tracks.push(Track {
                 id: self.next_id,
                 x: Vector4::new(d.position[0], d.position[1], 0.0, 0.0),
@@ -632,14 +634,14 @@ impl Tracker {
                 born_ns: stamp,
                 last_hit_ns: stamp,
                 history: 1,
-                confirm_history: u32::from(counts_to_confirm(&self.cfg, d).0),
-                peak_history: u32::from(counts_to_confirm(&self.cfg, d).1),
+                confirm_history: u32::from(counts),
+                peak_history: u32::from(peak),
                 misses: 0,
                 unobserved_ns: 0,
                 recent_hits: 1,
                 placed_by_fresh_cells: false,
                 flickering: false,
-                confirmed: counts_to_confirm(&self.cfg, d) == (true, true)
+                confirmed: peak
                     && confirm_rule(&self.cfg, &self.clutter, own, yaw, d.position).0 <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
