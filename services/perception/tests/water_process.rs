@@ -7,6 +7,7 @@
 use messages::{topics, truth_class, water_cue, Header, Heartbeat, InsState};
 use perception::water_bench::{render_colour_frame, ColourFrame};
 use runtime::Ports;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -83,27 +84,35 @@ fn water_mask_and_water_cells_from_a_puddle_ahead() {
 
     let mut stamp = 7_000_000_000u64;
     let end = Instant::now() + Duration::from_secs(30);
-    let (mut mask, mut map) = (None, None);
-    while (mask.is_none() || map.is_none()) && Instant::now() < end {
+    // The first frames may meet a service still connecting (a disparity without its colour frame
+    // gives a map without a mask), so the mask is paired with the map of its own stamp.
+    let mut mask: Option<(messages::WaterMaskHeader, Vec<u8>)> = None;
+    let mut maps_by_stamp = HashMap::new();
+    let paired = |mask: &Option<(messages::WaterMaskHeader, Vec<u8>)>, maps: &HashMap<u64, _>| {
+        mask.as_ref()
+            .is_some_and(|(h, _)| maps.contains_key(&h.hdr.stamp_ns))
+    };
+    while !paired(&mask, &maps_by_stamp) && Instant::now() < end {
         stamp += 200_000_000;
         send(stamp, 0, &f.disparity, (f.width, f.height));
         let wait = Instant::now() + Duration::from_secs(3);
-        while (mask.is_none() || map.is_none()) && Instant::now() < wait {
+        while !paired(&mask, &maps_by_stamp) && Instant::now() < wait {
             std::thread::sleep(Duration::from_millis(20));
             while let Some(s) = masks.receive().unwrap() {
-                let h = *s.user_header();
-                mask = Some((h, s.payload().to_vec()));
+                mask = Some((*s.user_header(), s.payload().to_vec()));
             }
             while let Some(s) = maps.receive().unwrap() {
-                map = Some((*s.user_header(), s.payload().to_vec()));
+                let h = *s.user_header();
+                maps_by_stamp.insert(h.hdr.stamp_ns, (h, s.payload().to_vec()));
             }
         }
     }
     let (mh, mask) = mask.expect("no water mask");
-    let (lh, cells) = map.expect("no local map");
+    let (lh, cells) = maps_by_stamp
+        .remove(&mh.hdr.stamp_ns)
+        .expect("no local map of the water mask's frame");
     assert_eq!((mh.width, mh.height, mask.len()), (f.width, f.height, n));
     assert_eq!(mh.head.as_str(), "color");
-    assert_eq!(mh.hdr.stamp_ns, lh.hdr.stamp_ns);
     assert!(mh.regions >= 1, "{mh:?}");
 
     // Water pixels lie on the puddle, and cover a good part of the puddles in view.
