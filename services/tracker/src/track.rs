@@ -226,6 +226,8 @@ struct Track {
     /// Missed this map in the sensors' coverage close to the boat with the record of wave glint
     /// (see [`TrackerConfig::in_view_min_hits`]): deleted.
     flickering: bool,
+    /// Held still out of view since its last detection (see [`hold_still`]).
+    held_still: bool,
     /// Summed class posteriors, indexed by contact class.
     class_score: [f32; 5],
     extent: [f32; 3],
@@ -439,7 +441,13 @@ impl Tracker {
         self.last_stamp = Some(stamp);
 
         for t in &mut self.tracks {
-            predict(t, dt, self.cfg.accel_sigma);
+            // An anchored object does not manoeuvre (see `hold_still`).
+            let accel_sigma = if t.held_still {
+                0.0
+            } else {
+                self.cfg.accel_sigma
+            };
+            predict(t, dt, accel_sigma);
             // Once it has a real object's record, for as long as it is guided: a track that went
             // back and forth between the two centroids, 2-3 m apart for a boat seen from astern,
             // fell out of its own gate and its speed swung by 2 m/s (follow_boat, seed 38,
@@ -528,6 +536,7 @@ impl Tracker {
                     t.recent_hits = (t.history & unobserved_mask).count_ones();
                     t.misses = 0;
                     t.unobserved_ns = 0;
+                    t.held_still = false;
                     t.last_hit_ns = stamp;
                     // A component only a guide window let through is the smear of the last
                     // frames: it places the object but says nothing of its shape.
@@ -567,8 +576,7 @@ impl Tracker {
                         if t.class().0 == contact_class::CHANNEL_MARKER
                             || speed < ANCHORED_MAX_SPEED_MPS
                         {
-                            t.x[2] = 0.0;
-                            t.x[3] = 0.0;
+                            hold_still(t);
                         }
                         t.unobserved_ns += dt_ns;
                     }
@@ -641,6 +649,7 @@ impl Tracker {
                 recent_hits: 1,
                 placed_by_fresh_cells: false,
                 flickering: false,
+                held_still: false,
                 confirmed: peak
                     && confirm_rule(&self.cfg, &self.clutter, own, yaw, d.position).0 <= 1,
                 class_score,
@@ -954,6 +963,34 @@ fn confirm_rule(
 /// Out of coverage, a track slower than this (m/s) is held still (see `update`).
 const ANCHORED_MAX_SPEED_MPS: f64 = 1.0;
 
+/// Speed (m/s, 1 sigma) at which a track held still may drift: a buoy swinging on its mooring,
+/// a moored boat. Its position sigma grows by this much a second out of view.
+const ANCHORED_DRIFT_MPS: f64 = 0.3;
+
+/// Holds a track still (an anchored object out of view): zero velocity, and, when the hold
+/// begins, a velocity covariance no wider than [`ANCHORED_DRIFT_MPS`] and uncorrelated with the
+/// position; until its next detection it is predicted without acceleration noise, so its
+/// position sigma grows by the drift alone. Before, the young velocity estimate that was set to
+/// zero still spread the position: a moored boat's track reached the 10 m hold limit 9 s after
+/// it left the view (bridge_pylons).
+fn hold_still(t: &mut Track) {
+    t.x[2] = 0.0;
+    t.x[3] = 0.0;
+    if !t.held_still {
+        t.held_still = true;
+        let drift = ANCHORED_DRIFT_MPS * ANCHORED_DRIFT_MPS;
+        for v in 2..4 {
+            for i in 0..4 {
+                if i != v {
+                    t.p[(v, i)] = 0.0;
+                    t.p[(i, v)] = 0.0;
+                }
+            }
+            t.p[(v, v)] = t.p[(v, v)].min(drift);
+        }
+    }
+}
+
 /// Whether any cell within `radius` (m) of (x, y) was observed in this map.
 fn observed_near(g: &GridGeometry, cells: &[MapCell], x: f64, y: f64, radius: f64) -> bool {
     let reach = (radius / g.resolution_m).ceil() as i64;
@@ -1111,6 +1148,7 @@ mod tests {
             placed_by_fresh_cells: false,
             flickering: false,
             confirmed: true,
+            held_still: false,
             class_score: [0.0; 5],
             extent: [3.0, 6.0, 1.5],
         }
@@ -1194,6 +1232,57 @@ mod tests {
         assert_eq!(m.velocity, [0.0, 0.0]);
         // The boat is predicted on along its course.
         assert!((by_id(6).position[1] - 35.0).abs() < 0.5, "{:?}", by_id(6));
+    }
+
+    #[test]
+    fn a_moored_boat_out_of_view_is_held_until_the_hold_limit_not_lost_to_its_young_velocity() {
+        let model = Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json"))
+            .unwrap();
+        let cfg = TrackerConfig::default();
+        let mut tracker = Tracker::new(cfg.clone(), model).unwrap();
+        // Seen for 10 s, still, but with its velocity known only to 2 m/s: set to zero and left
+        // so, its position sigma would pass the 10 m limit 5 s out of view.
+        let mut moored = coasting(7, NOW - 10_000_000_000, [20.0, 5.0], [0.4, 0.0]);
+        moored.p = Matrix4::from_diagonal(&Vector4::new(1.0, 1.0, 4.0, 4.0));
+        moored.class_score[contact_class::BOAT as usize] = 3.0;
+        tracker.tracks = vec![moored];
+        tracker.last_stamp = Some(NOW);
+        let grid = GridGeometry {
+            width: 200,
+            height: 200,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        let cells = vec![MapCell::default(); grid.cell_count()];
+        let mut list = ContactList::default();
+        let mut held_s = 0.0;
+        for k in 1..=200u64 {
+            let hdr = WorldMapHeader {
+                hdr: Header::new(k, NOW + k * 200_000_000, "test"),
+                grid,
+                ..Default::default()
+            };
+            tracker.update(&hdr, &cells, "test", &mut list).unwrap();
+            match list.as_slice().iter().find(|c| c.id == 7) {
+                Some(c) => {
+                    held_s = k as f64 * 0.2;
+                    // Where it was placed, its sigma growing by the anchored drift.
+                    assert!((c.position[0] - 20.0).abs() < 0.5, "{c:?}");
+                    let sigma = position_sigma(&tracker.tracks[0]);
+                    // 1.5 m: the 1 m it had, widened by the first map's prediction with the
+                    // 2 m/s velocity sigma, before the hold began.
+                    let drift = (1.5f64.powi(2) + (ANCHORED_DRIFT_MPS * held_s).powi(2)).sqrt();
+                    assert!(sigma <= drift, "{sigma} m after {held_s} s");
+                }
+                None => break,
+            }
+        }
+        // Held for the whole out-of-view limit, not 5 s.
+        let limit = cfg.unobserved_max_coast_s;
+        assert!(
+            held_s >= limit - 1.0 && held_s <= limit + 0.5,
+            "held {held_s} s"
+        );
     }
 
     #[test]
