@@ -113,7 +113,8 @@ fn shore_test(world: &World) -> anyhow::Result<impl Fn(f64, f64) -> Option<f64> 
     Ok(move |x: f64, y: f64| world.land_height(x, y, SHORE_HEIGHT_M))
 }
 
-/// Examples from recorded world maps: `dir/<scenario>/run.mcap` for scenarios of `scenarios`.
+/// Examples from recorded world maps: `dir/<scenario>/run.mcap` (or `dir/<scenario>-<seed>/`) for
+/// scenarios of `scenarios`.
 fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
     let sets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../launch/sets/tracker.toml");
     let cfg: TrackerConfig = tracker::config::load(&sets)?.0.tracking;
@@ -133,7 +134,12 @@ fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
     let mut detections = Vec::new();
     let mut labelled = Vec::new();
     for (si, run) in runs.iter().enumerate() {
-        let name = run.parent().unwrap().file_name().unwrap().to_string_lossy();
+        let dir_name = run.parent().unwrap().file_name().unwrap().to_string_lossy();
+        // `follow_boat-38`: one scenario's runs with other seeds side by side.
+        let name = dir_name
+            .rsplit_once('-')
+            .filter(|(_, seed)| seed.chars().all(|c| c.is_ascii_digit()))
+            .map_or(&*dir_name, |(name, _)| name);
         let world = sim::scenario::load_world(&scenarios.join(format!("{name}.toml")))
             .with_context(|| format!("scenario of {}", run.display()))?;
         let shore = shore_test(&world)?;
@@ -187,7 +193,7 @@ fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
                 .extend_from_slice(&labelled);
             maps += 1;
         }
-        println!("{name}: {maps} world maps");
+        println!("{dir_name}: {maps} world maps");
         examples.scenarios.push(name.to_string());
     }
     Ok(examples)
