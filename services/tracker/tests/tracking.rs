@@ -648,6 +648,11 @@ fn an_inconsistent_configuration_is_refused_with_the_reason() {
         ..TrackerConfig::default()
     });
     assert!(e.contains("clutter_tau_s must be finite and > 0"), "{e}");
+    let e = refused(TrackerConfig {
+        confirm_max_fit_sigma: f64::NAN,
+        ..TrackerConfig::default()
+    });
+    assert!(e.contains("confirm_max_fit_sigma must be > 0"), "{e}");
 }
 
 #[test]
@@ -877,11 +882,15 @@ fn a_moving_track_close_by_in_view_that_is_seen_in_one_map_of_seven_is_dropped()
     assert!(glint_crossing_ahead_is_tracked(off));
 }
 
-/// Maps at which a track on a 1 m x 1.5 m blob 50 m ahead stands confirmed, over 6 maps: the
-/// blob at hazard 200 in every map, observed in this very map at the maps `observed` accepts (the
-/// others hold it from earlier observations only, as the world map holds a cell until the heads
-/// see it again).
-fn confirmed_maps(cfg: TrackerConfig, observed: impl Fn(u64) -> bool) -> Vec<u64> {
+/// Maps at which a track on a 1 m x 1.5 m blob about 50 m ahead stands confirmed, over 6 maps:
+/// the blob at hazard 200 in every map, at `at(k)` in map `k`, observed in this very map at the
+/// maps `observed` accepts (the others hold it from earlier observations only, as the world map
+/// holds a cell until the heads see it again).
+fn confirmed_maps(
+    cfg: TrackerConfig,
+    observed: impl Fn(u64) -> bool,
+    at: impl Fn(u64) -> [f64; 2],
+) -> Vec<u64> {
     let mut t = Tracker::new(cfg, model()).unwrap();
     let grid = grid_100m();
     let mut list = Box::<ContactList>::default();
@@ -894,11 +903,12 @@ fn confirmed_maps(cfg: TrackerConfig, observed: impl Fn(u64) -> bool) -> Vec<u64
             observed: if observed(k) { 3 } else { 0 },
             ..Default::default()
         };
+        let [bx, by] = at(k);
         paint_cells(&grid, &mut cells, cell, |[x, y]| {
-            (x - 0.5).abs() < 0.5 && (y - 50.0).abs() < 0.75
+            (x - bx).abs() < 0.5 && (y - by).abs() < 0.75
         });
         feed(&mut t, grid, k, &cells, &mut list);
-        if confirmed_near(&list, [0.5, 50.0], 2.0).is_some() {
+        if !confirmed(&list).is_empty() {
             out.push(k);
         }
     }
@@ -907,17 +917,21 @@ fn confirmed_maps(cfg: TrackerConfig, observed: impl Fn(u64) -> bool) -> Vec<u64
 
 #[test]
 fn a_blob_the_map_holds_from_one_observation_is_not_confirmed_and_one_seen_in_every_map_is() {
+    let ahead = |_| [0.5, 50.0];
     let every_map = |_| true;
     let once = |k| k == 0;
     assert_eq!(
-        confirmed_maps(TrackerConfig::default(), every_map),
+        confirmed_maps(TrackerConfig::default(), every_map, ahead),
         [2, 3, 4, 5]
     );
     // One frame's stereo mismatch the map keeps until the heads look there again.
-    assert_eq!(confirmed_maps(TrackerConfig::default(), once), [0u64; 0]);
+    assert_eq!(
+        confirmed_maps(TrackerConfig::default(), once, ahead),
+        [0u64; 0]
+    );
     // Seen in every other map: confirmed on its third sighting.
     assert_eq!(
-        confirmed_maps(TrackerConfig::default(), |k| k % 2 == 0),
+        confirmed_maps(TrackerConfig::default(), |k| k % 2 == 0, ahead),
         [4, 5]
     );
     // Without the rule the held blob is confirmed as soon as the one seen in every map.
@@ -926,5 +940,29 @@ fn a_blob_the_map_holds_from_one_observation_is_not_confirmed_and_one_seen_in_ev
         confirm_peak_observed_cells: 0,
         ..TrackerConfig::default()
     };
-    assert_eq!(confirmed_maps(off, once), [2, 3, 4, 5]);
+    assert_eq!(confirmed_maps(off, once, ahead), [2, 3, 4, 5]);
+}
+
+#[test]
+fn a_blob_that_jumps_about_from_map_to_map_is_not_confirmed_and_one_that_moves_steadily_is() {
+    let every_map = |_| true;
+    // 50 m ahead at 5 m/s across the line of sight.
+    let steady = |k: u64| [0.5 + k as f64, 50.0];
+    assert_eq!(
+        confirmed_maps(TrackerConfig::default(), every_map, steady),
+        [2, 3, 4, 5]
+    );
+    // Stereo mismatches on the waves that the gate chains into one track: 0.5 m to either side
+    // of a point by turns, a constant-velocity fit 1.3 cross-range sigmas (RMS) off them at 50 m.
+    let jumping = |k: u64| [0.5 + if k % 2 == 0 { 0.5 } else { -0.5 }, 50.0];
+    assert_eq!(
+        confirmed_maps(TrackerConfig::default(), every_map, jumping),
+        [0u64; 0]
+    );
+    // Without the fit the same blob is confirmed as soon as the steady one.
+    let off = TrackerConfig {
+        confirm_max_fit_sigma: f64::INFINITY,
+        ..TrackerConfig::default()
+    };
+    assert_eq!(confirmed_maps(off, every_map, jumping), [2, 3, 4, 5]);
 }
