@@ -954,7 +954,7 @@ fn a_blob_that_jumps_about_from_map_to_map_is_not_confirmed_and_one_that_moves_s
     );
     // Stereo mismatches on the waves that the gate chains into one track: 0.5 m to either side
     // of a point by turns, a constant-velocity fit 1.3 cross-range sigmas (RMS) off them at 50 m.
-    let jumping = |k: u64| [0.5 + if k % 2 == 0 { 0.5 } else { -0.5 }, 50.0];
+    let jumping = |k: u64| [0.5 + if k.is_multiple_of(2) { 0.5 } else { -0.5 }, 50.0];
     assert_eq!(
         confirmed_maps(TrackerConfig::default(), every_map, jumping),
         [0u64; 0]
