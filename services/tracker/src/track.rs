@@ -286,9 +286,11 @@ impl Track {
         if n < 3 {
             return 0.0;
         }
-        let fixes: Vec<[f64; 5]> = (self.fix_count - n..self.fix_count)
-            .map(|i| self.fixes[i % FIT_FIXES])
-            .collect();
+        let mut window = [[0.0; 5]; FIT_FIXES];
+        for (w, i) in window.iter_mut().zip(self.fix_count - n..self.fix_count) {
+            *w = self.fixes[i % FIT_FIXES];
+        }
+        let fixes = &window[..n];
         let mean = |k: usize| fixes.iter().map(|f| f[k]).sum::<f64>() / n as f64;
         let (tm, xm, ym) = (mean(0), mean(1), mean(2));
         let stt: f64 = fixes.iter().map(|f| (f[0] - tm).powi(2)).sum();
