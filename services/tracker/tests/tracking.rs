@@ -407,12 +407,13 @@ fn a_turning_boat_whose_smear_drags_its_track_astern_is_taken_up_by_its_hull_ahe
 
 /// A 6 m boat making 7 m/s north, seen from astern as the world map holds it while the own boat
 /// closes in (follow_boat, seed 42, 245-248 s): fully mapped for 2 s, then each map sees only its
-/// transom, at little hazard (a first sighting for perception) under 60 points 2 m high, while
-/// the smear of the frames the map still averages grows astern of it from 2 to 8 m. Returns the
-/// confirmed tracks at the end, the transom's position and the id confirmed while fully mapped.
+/// transom, at little hazard (a first sighting for perception) under 60 points `transom_cm` high,
+/// while the smear of the frames the map still averages grows astern of it from 2 to 8 m. Returns
+/// the confirmed tracks at the end, the transom's position and the id confirmed while fully mapped.
 /// Maps for which `unseen` holds show open water only.
 fn boat_seen_from_astern(
     cfg: TrackerConfig,
+    transom_cm: i16,
     unseen: impl Fn(u64) -> bool,
 ) -> (Vec<Contact>, [f64; 2], u32) {
     let mut t = Tracker::new(cfg, model()).unwrap();
@@ -439,7 +440,7 @@ fn boat_seen_from_astern(
             });
             let seen = MapCell {
                 hazard: 30,
-                max_height_cm: 200,
+                max_height_cm: transom_cm,
                 observed: 60,
                 ..Default::default()
             };
@@ -465,7 +466,7 @@ fn fresh_cells_off() -> TrackerConfig {
 
 #[test]
 fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
-    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), |_| false);
+    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), 200, |_| false);
     assert_eq!(tracks.len(), 1, "{tracks:?}");
     let c = tracks[0];
     assert_eq!(c.id, first);
@@ -474,11 +475,31 @@ fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
     assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed:.2}");
     assert!(error < 1.0, "{error:.1} m off the transom");
     // Off, placed by the hazard-weighted centroid, the track falls back into the smear and slows.
-    let (tracks, stern, _) = boat_seen_from_astern(fresh_cells_off(), |_| false);
+    let (tracks, stern, _) = boat_seen_from_astern(fresh_cells_off(), 200, |_| false);
     let c = tracks[0];
     let speed = c.velocity[0].hypot(c.velocity[1]);
     let lag = stern[1] - c.position[1];
     assert!(lag > 3.0 && speed < 6.7, "lag {lag:.1} m, speed {speed:.2}");
+}
+
+#[test]
+fn a_transom_the_water_level_fit_reads_low_is_still_tracked_at_the_transom() {
+    // In follow_boat's maps (seed 40, 36-42 s) the fitted water level stood 0.4-0.7 m above the
+    // open water around the target, so its transom read 0.7-0.9 m high instead of 1.3 m; with a
+    // 1 m bar for lifted cells its track slid into the smear astern and lost the boat.
+    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), 80, |_| false);
+    assert_eq!(tracks.len(), 1, "{tracks:?}");
+    let c = tracks[0];
+    assert_eq!(c.id, first);
+    let error = (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]);
+    assert!(error < 1.0, "{error:.1} m off the transom");
+    let metre_bar = TrackerConfig {
+        guided_lifted_height_m: 1.0,
+        ..TrackerConfig::default()
+    };
+    let (tracks, stern, _) = boat_seen_from_astern(metre_bar, 80, |_| false);
+    let lag = stern[1] - tracks[0].position[1];
+    assert!(lag > 3.0, "lag {lag:.1} m");
 }
 
 #[test]
@@ -515,7 +536,7 @@ fn cells_seen_high_in_this_map_alone_do_not_carry_a_track_on() {
 fn a_track_placed_at_its_hull_stays_there_through_a_stretch_of_missed_maps() {
     // Every other map misses the boat for 2 s (4 of 8 maps detected, a glint track's record
     // for taking fresh cells); it is still placed at its transom afterwards.
-    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), |k| {
+    let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), 200, |k| {
         (20..30).contains(&k) && k % 2 == 1
     });
     assert_eq!(tracks.len(), 1, "{tracks:?}");
