@@ -142,6 +142,23 @@ fn record_then_replay_is_byte_identical() {
     }
 }
 
+/// Sequence numbers of the INS samples readable in a recording so far (none if it cannot be
+/// opened yet).
+fn ins_seqs(path: &Path) -> Vec<u32> {
+    let Ok(rec) = Recording::open(path) else {
+        return Vec::new();
+    };
+    let Some(ins) = rec.channels().find(|c| c.topic == topics::INS.name) else {
+        return Vec::new();
+    };
+    let ins_id = ins.id;
+    rec.messages(0, |_| true)
+        .filter_map(Result::ok)
+        .filter(|m| m.channel == ins_id)
+        .map(|m| m.sequence)
+        .collect()
+}
+
 #[test]
 fn killed_recorder_leaves_a_readable_file() {
     let d = Domain::new();
@@ -150,7 +167,12 @@ fn killed_recorder_leaves_a_readable_file() {
     let mut sender = Sender::new(&d);
     let child = start_recorder(&d, &sender, &file, &["--chunk-seconds", "0.1"]);
     sender.send_all();
-    std::thread::sleep(Duration::from_millis(300));
+    // Chunks close every 0.1 s: wait until the last INS sample is on disk (a loaded machine may
+    // take longer than the nominal 0.2 s), then kill.
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while ins_seqs(&file).len() < 50 && std::time::Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(50));
+    }
     signal(&child, libc::SIGKILL);
     let _ = child.wait_with_output();
     let len = std::fs::metadata(&file).unwrap().len();
@@ -162,20 +184,7 @@ fn killed_recorder_leaves_a_readable_file() {
             .expect("a killed recorder's file has no end")
             .clone();
         assert_eq!(t.offset, expect_offset, "{t:?}");
-        let ins_id = rec
-            .channels()
-            .find(|c| c.topic == topics::INS.name)
-            .unwrap()
-            .id;
-        let mut seqs = Vec::new();
-        for m in rec.messages(0, |_| true) {
-            let m = m.unwrap();
-            if m.channel == ins_id {
-                seqs.push(m.sequence);
-            }
-        }
-        // Chunks close every 0.1 s, the sender ran 0.5 s and stopped 0.3 s before the kill.
-        assert_eq!(seqs, (0..50).collect::<Vec<u32>>());
+        assert_eq!(ins_seqs(path), (0..50).collect::<Vec<u32>>());
     };
     check(&file, len);
     // Killed in the middle of writing a chunk: that chunk is cut off, everything before it is read.
