@@ -41,6 +41,7 @@ with open(sys.argv[1], "rb") as f:
 
 #[test]
 fn recorded_counts_and_the_python_reader() {
+    let _serial = common::serial();
     let d = Domain::new();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("py.mcap");
@@ -92,6 +93,7 @@ fn recorded_counts_and_the_python_reader() {
 
 #[test]
 fn a_restarted_recorder_keeps_the_recording_it_was_given_and_writes_the_next_part() {
+    let _serial = common::serial();
     let d = Domain::new();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("run.mcap");

@@ -44,6 +44,7 @@ fn record_known(d: &Domain, out: &Path, extra: &[&str]) {
 
 #[test]
 fn record_then_replay_is_byte_identical() {
+    let _serial = common::serial();
     let d = Domain::new();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("run.mcap");
@@ -161,6 +162,7 @@ fn ins_seqs(path: &Path) -> Vec<u32> {
 
 #[test]
 fn killed_recorder_leaves_a_readable_file() {
+    let _serial = common::serial();
     let d = Domain::new();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("killed.mcap");
