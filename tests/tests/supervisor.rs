@@ -126,34 +126,11 @@ fn swap_under_load_interrupts_the_stream_at_most_once_and_loses_nothing() {
     let rx = received(&set);
     let listener_pids: std::collections::BTreeSet<_> = rx.iter().map(|r| r.pid).collect();
     assert_eq!(listener_pids.len(), 1, "the listener was disturbed");
-    // Gaps between consecutive arrivals, at 100 Hz nominal. A late sample that follows its
-    // predecessor from the same program with nothing lost is the machine's scheduling, not the
-    // swap (a loaded 2-core machine stalls a process for 60 ms now and then); the swap may cost
-    // one interruption, where the programs change hands, and nothing else may be lost.
-    let gaps: Vec<(u64, bool)> = rx
-        .windows(2)
-        .map(|w| {
-            let continuous = w[0].tag == w[1].tag && w[1].seq == w[0].seq + 1;
-            (
-                w[1].received_ns.saturating_sub(w[0].received_ns),
-                continuous,
-            )
-        })
-        .collect();
-    let interruptions: Vec<_> = gaps
-        .iter()
-        .filter(|&&(g, continuous)| g > 60_000_000 && !continuous)
-        .collect();
-    assert!(
-        interruptions.len() <= 1,
-        "more than one interruption (gap ns, same program and nothing lost): {interruptions:?}"
-    );
-    let worst = gaps.iter().map(|&(g, _)| g).max().unwrap_or(0);
-    assert!(worst < 1_000_000_000, "gap of {worst} ns during the swap");
-    // After the swap only the new program's samples arrive.
+    // Samples from the old program, then only from the new one, each without a hole: the swap
+    // interrupts the stream once, where the programs change hands, and loses nothing. A sample
+    // merely late (a loaded 2-core machine stalls a process for 60 ms now and then) is no loss.
     let first_new = rx.iter().position(|r| r.tag == 2.0).unwrap();
     assert!(rx[first_new..].iter().all(|r| r.tag == 2.0));
-    // Each program's samples arrive without a hole.
     for part in [&rx[..first_new], &rx[first_new..]] {
         let holes: Vec<_> = part
             .windows(2)
@@ -162,6 +139,13 @@ fn swap_under_load_interrupts_the_stream_at_most_once_and_loses_nothing() {
             .collect();
         assert!(holes.is_empty(), "samples lost: {holes:?}");
     }
+    // Gaps between consecutive arrivals, at 100 Hz nominal.
+    let worst = rx
+        .windows(2)
+        .map(|w| w[1].received_ns.saturating_sub(w[0].received_ns))
+        .max()
+        .unwrap_or(0);
+    assert!(worst < 1_000_000_000, "gap of {worst} ns during the swap");
     assert!(set.down());
 }
 

@@ -143,20 +143,20 @@ fn record_then_replay_is_byte_identical() {
     }
 }
 
-/// Sequence numbers of the INS samples readable in a recording so far (none if it cannot be
-/// opened yet).
-fn ins_seqs(path: &Path) -> Vec<u32> {
-    let Ok(rec) = Recording::open(path) else {
-        return Vec::new();
+/// Sequence numbers of a recording's INS samples, or the first read error.
+fn ins_seqs(rec: Recording) -> Result<Vec<u32>, ReadError> {
+    let Some(ins_id) = rec
+        .channels()
+        .find(|c| c.topic == topics::INS.name)
+        .map(|c| c.id)
+    else {
+        return Ok(Vec::new());
     };
-    let Some(ins) = rec.channels().find(|c| c.topic == topics::INS.name) else {
-        return Vec::new();
-    };
-    let ins_id = ins.id;
     rec.messages(0, |_| true)
-        .filter_map(Result::ok)
-        .filter(|m| m.channel == ins_id)
-        .map(|m| m.sequence)
+        .filter_map(|m| match m {
+            Ok(m) => (m.channel == ins_id).then_some(Ok(m.sequence)),
+            Err(e) => Some(Err(e)),
+        })
         .collect()
 }
 
@@ -171,8 +171,12 @@ fn killed_recorder_leaves_a_readable_file() {
     sender.send_all();
     // Chunks close every 0.1 s: wait until the last INS sample is on disk (a loaded machine may
     // take longer than the nominal 0.2 s), then kill.
-    let deadline = std::time::Instant::now() + Duration::from_secs(10);
-    while ins_seqs(&file).len() < 50 && std::time::Instant::now() < deadline {
+    let on_disk = || {
+        let rec = Recording::open(&file).ok()?;
+        ins_seqs(rec).ok().map(|seqs| seqs.len())
+    };
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while on_disk().unwrap_or(0) < 50 && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(50));
     }
     signal(&child, libc::SIGKILL);
@@ -186,7 +190,7 @@ fn killed_recorder_leaves_a_readable_file() {
             .expect("a killed recorder's file has no end")
             .clone();
         assert_eq!(t.offset, expect_offset, "{t:?}");
-        assert_eq!(ins_seqs(path), (0..50).collect::<Vec<u32>>());
+        assert_eq!(ins_seqs(rec).unwrap(), (0..50).collect::<Vec<u32>>());
     };
     check(&file, len);
     // Killed in the middle of writing a chunk: that chunk is cut off, everything before it is read.

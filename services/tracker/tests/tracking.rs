@@ -456,6 +456,18 @@ fn boat_seen_from_astern(
     (confirmed(&list), [0.0, transom(39)], first)
 }
 
+/// The one confirmed track of `boat_seen_from_astern`, kept under the id confirmed while fully
+/// mapped, and its distance (m) from the transom.
+fn sole_track_off_transom(tracks: &[Contact], stern: [f64; 2], first: u32) -> (Contact, f64) {
+    assert_eq!(tracks.len(), 1, "{tracks:?}");
+    let c = tracks[0];
+    assert_eq!(c.id, first);
+    (
+        c,
+        (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]),
+    )
+}
+
 /// The tracker without cells seen standing high in this map (taken by default).
 fn fresh_cells_off() -> TrackerConfig {
     TrackerConfig {
@@ -467,11 +479,8 @@ fn fresh_cells_off() -> TrackerConfig {
 #[test]
 fn a_boat_seen_from_astern_is_tracked_at_its_transom_not_at_its_smear() {
     let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), 200, |_| false);
-    assert_eq!(tracks.len(), 1, "{tracks:?}");
-    let c = tracks[0];
-    assert_eq!(c.id, first);
+    let (c, error) = sole_track_off_transom(&tracks, stern, first);
     let speed = c.velocity[0].hypot(c.velocity[1]);
-    let error = (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]);
     assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed:.2}");
     assert!(error < 1.0, "{error:.1} m off the transom");
     // Off, placed by the hazard-weighted centroid, the track falls back into the smear and slows.
@@ -488,10 +497,7 @@ fn a_transom_the_water_level_fit_reads_low_is_still_tracked_at_the_transom() {
     // open water around the target, so its transom read 0.7-0.9 m high instead of 1.3 m; with a
     // 1 m bar for lifted cells its track slid into the smear astern and lost the boat.
     let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), 80, |_| false);
-    assert_eq!(tracks.len(), 1, "{tracks:?}");
-    let c = tracks[0];
-    assert_eq!(c.id, first);
-    let error = (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]);
+    let (_, error) = sole_track_off_transom(&tracks, stern, first);
     assert!(error < 1.0, "{error:.1} m off the transom");
     let metre_bar = TrackerConfig {
         guided_lifted_height_m: 1.0,
@@ -539,11 +545,8 @@ fn a_track_placed_at_its_hull_stays_there_through_a_stretch_of_missed_maps() {
     let (tracks, stern, first) = boat_seen_from_astern(TrackerConfig::default(), 200, |k| {
         (20..30).contains(&k) && k % 2 == 1
     });
-    assert_eq!(tracks.len(), 1, "{tracks:?}");
-    let c = tracks[0];
-    assert_eq!(c.id, first);
+    let (c, error) = sole_track_off_transom(&tracks, stern, first);
     let speed = c.velocity[0].hypot(c.velocity[1]);
-    let error = (c.position[0] - stern[0]).hypot(c.position[1] - stern[1]);
     assert!((speed - 7.0).abs() / 7.0 < 0.04, "speed {speed:.2}");
     assert!(error < 1.0, "{error:.1} m off the transom");
 }
