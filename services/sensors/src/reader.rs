@@ -88,6 +88,11 @@ pub struct Message {
     pub data: Vec<u8>,
 }
 
+/// The most a chunk may hold uncompressed: a corrupt size field must not make the reader allocate
+/// terabytes. Chunks span 0.5 s of log by default; a recorded closed-loop run with two 640x480
+/// heads writes about 18 MB a second.
+const MAX_CHUNK_BYTES: u64 = 1 << 30;
+
 pub struct Recording {
     path: PathBuf,
     file: File,
@@ -338,6 +343,15 @@ impl Recording {
     fn load(&mut self, index: usize, from: u64, wanted: &[u16]) -> Result<Vec<Message>, ReadError> {
         let chunk = self.chunks[index].clone();
         let raw = self.read_at(chunk.data.0, chunk.data.1)?;
+        if chunk.uncompressed_size > MAX_CHUNK_BYTES {
+            return Err(self.corrupt(
+                chunk.offset,
+                format!(
+                    "chunk header says {} bytes uncompressed, over the {MAX_CHUNK_BYTES} a chunk may hold",
+                    chunk.uncompressed_size
+                ),
+            ));
+        }
         let size = chunk.uncompressed_size as usize;
         let records = match chunk.compression.as_str() {
             "" => raw,
