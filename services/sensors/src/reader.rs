@@ -274,7 +274,7 @@ impl Recording {
                 .to_string();
             let data_len = u64_at(32 + name_len)?;
             let data_start = (32 + name_len + 8) as u64;
-            (data_start + data_len <= body_len).then_some(ChunkRef {
+            (data_start.checked_add(data_len)? <= body_len).then_some(ChunkRef {
                 offset: pos,
                 start,
                 end,
