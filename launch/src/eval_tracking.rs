@@ -53,6 +53,27 @@ impl Counts {
 /// Whether an ENU point is land (the scenario's terrain above the water).
 pub type LandTest = Box<dyn Fn(f64, f64) -> bool>;
 
+/// What a confirmed track looked like when it was first reported confirmed, and how long it lived:
+/// the profile of the false ones says where they come from.
+#[derive(Clone, Copy)]
+struct TrackLife {
+    first_stamp_ns: u64,
+    last_stamp_ns: u64,
+    /// Contact lists it was confirmed in, and of those, coasting.
+    lists: u32,
+    coasting: u32,
+    /// Range (m) and body-frame bearing (deg, counter-clockwise from the bow) at confirmation.
+    range_m: f64,
+    bearing_deg: f64,
+    age_s: f32,
+    speed_mps: f64,
+    class: u8,
+    extent: [f32; 3],
+}
+
+/// Confirmed tracks listed one by one in the report, at most.
+const TRACKS_LISTED: usize = 200;
+
 #[derive(Default)]
 pub struct TrackingScore {
     truths: BTreeMap<u64, Box<GroundTruth>>,
@@ -70,6 +91,9 @@ pub struct TrackingScore {
     /// frame (rad, counter-clockwise from forward), from the disparity images' camera models.
     views: BTreeMap<String, (f64, f64)>,
     confirmed_ids: BTreeSet<u32>,
+    lives: BTreeMap<u32, TrackLife>,
+    /// Stamp of the first contact list scored (the report's times are relative to it).
+    first_stamp_ns: Option<u64>,
     /// Confirmed tracks reported at least once as an object (boat, marker, extended) rather than
     /// a false alarm: the ones the sequencer avoids.
     object_ids: BTreeSet<u32>,
@@ -133,6 +157,8 @@ impl TrackingScore {
             return;
         };
         self.scored_lists += 1;
+        let stamp = list.hdr.stamp_ns;
+        self.first_stamp_ns.get_or_insert(stamp);
         let own = truth.own.pose;
         let s = score(list, truth, &own, GATE_M);
         for (o, os) in truth.objects().iter().zip(&s.objects) {
@@ -187,6 +213,25 @@ impl TrackingScore {
         }
         for c in list.as_slice().iter().filter(|c| c.confirmed == 1) {
             self.confirmed_ids.insert(c.id);
+            let (dx, dy) = (
+                c.position[0] - own.position[0],
+                c.position[1] - own.position[1],
+            );
+            let life = self.lives.entry(c.id).or_insert(TrackLife {
+                first_stamp_ns: stamp,
+                last_stamp_ns: stamp,
+                lists: 0,
+                coasting: 0,
+                range_m: dx.hypot(dy),
+                bearing_deg: wrap_deg((dy.atan2(dx) - own.yaw).to_degrees()),
+                age_s: c.age_s,
+                speed_mps: c.velocity[0].hypot(c.velocity[1]),
+                class: c.class,
+                extent: c.extent,
+            });
+            life.last_stamp_ns = stamp;
+            life.lists += 1;
+            life.coasting += u32::from(c.coasting == 1);
             if matches!(
                 c.class,
                 contact_class::BOAT | contact_class::CHANNEL_MARKER | contact_class::EXTENDED
@@ -225,6 +270,35 @@ impl TrackingScore {
             .filter(|id| !self.matched_ids.contains(id) && !self.shore_ids.contains(id))
     }
 
+    /// The confirmed tracks one by one (the first [`TRACKS_LISTED`]), as they were when first
+    /// reported confirmed: what they turned out to be ("false", "object" for a true object's,
+    /// "shore"), where and what they were, and how long they stayed confirmed.
+    fn track_list(&self) -> Vec<serde_json::Value> {
+        let since_start =
+            |ns: u64| ns.saturating_sub(self.first_stamp_ns.unwrap_or(0)) as f64 * 1e-9;
+        self.lives
+            .iter()
+            .take(TRACKS_LISTED)
+            .map(|(id, l)| {
+                let truth = if self.matched_ids.contains(id) {
+                    "object"
+                } else if self.shore_ids.contains(id) {
+                    "shore"
+                } else {
+                    "false"
+                };
+                json!({"id": id, "truth": truth,
+                       "confirmed_at_s": since_start(l.first_stamp_ns),
+                       "confirmed_for_s": (l.last_stamp_ns - l.first_stamp_ns) as f64 * 1e-9,
+                       "lists": l.lists, "coasting": l.coasting,
+                       "range_m": l.range_m, "bearing_deg": l.bearing_deg,
+                       "age_s": l.age_s, "speed_mps": l.speed_mps,
+                       "class": contact_class::name(l.class), "extent_m": l.extent,
+                       "reported_as_object": self.object_ids.contains(id)})
+            })
+            .collect()
+    }
+
     /// Confirmed tracks on the shore that never met a scored true object.
     pub fn shore_tracks(&self) -> usize {
         self.shore_ids.difference(&self.matched_ids).count()
@@ -258,6 +332,7 @@ impl TrackingScore {
             "false_object_tracks": self.false_object_tracks(),
             "false_object_tracks_per_min": (scenario_minutes > 0.0)
                 .then(|| self.false_object_tracks() as f64 / scenario_minutes),
+            "tracks": self.track_list(),
             "moving_speed_error_pct": {"p50": median(&self.speed_errors_pct),
                                        "samples": self.speed_errors_pct.len(),
                                        "detected_p50": median(&self.detected_speed_errors_pct),
@@ -266,6 +341,16 @@ impl TrackingScore {
             "along_cross_3sigma_ratio": self.along_cross.sigma_ratio(),
             "along_cross_rms_error_m": self.along_cross.rms_errors(),
         })
+    }
+}
+
+/// An angle in degrees wrapped to (-180, 180].
+fn wrap_deg(a: f64) -> f64 {
+    let w = a.rem_euclid(360.0);
+    if w > 180.0 {
+        w - 360.0
+    } else {
+        w
     }
 }
 
@@ -348,6 +433,28 @@ mod tests {
         assert_eq!(r["false_tracks_per_min"], 4.0);
         assert_eq!(r["false_object_tracks"], 1);
         assert_eq!(r["false_object_tracks_per_min"], 2.0);
+        // Each track as first confirmed: range and bearing from the own boat (facing east).
+        let listed = r["tracks"].as_array().unwrap();
+        let [target, boat, alarm] = [&listed[0], &listed[1], &listed[2]];
+        assert_eq!(target["truth"], "object");
+        assert_eq!(
+            (boat["truth"].as_str(), alarm["truth"].as_str()),
+            (Some("false"), Some("false"))
+        );
+        assert_eq!(
+            (boat["id"].as_u64(), alarm["id"].as_u64()),
+            (Some(11), Some(12))
+        );
+        assert!((boat["range_m"].as_f64().unwrap() - 60.0 * 2f64.sqrt()).abs() < 1e-9);
+        assert!((boat["bearing_deg"].as_f64().unwrap() + 135.0).abs() < 1e-9);
+        assert!((alarm["bearing_deg"].as_f64().unwrap() + 45.0).abs() < 1e-9);
+        assert_eq!(
+            (
+                boat["reported_as_object"].as_bool(),
+                alarm["reported_as_object"].as_bool()
+            ),
+            (Some(true), Some(false))
+        );
         let speed = r["moving_speed_error_pct"]["p50"].as_f64().unwrap();
         assert!((speed - 4.0).abs() < 1e-9, "{speed}");
         assert_eq!(r["moving_speed_error_pct"]["detected_samples"], 1);
