@@ -48,6 +48,9 @@ impl Drop for Stereo {
         let _ = self.child.wait();
         let config = runtime::domain::config_for(Some(&self.domain)).unwrap();
         runtime::cleanup::sweep_dead_nodes(&config);
+        // Here, not after the test's last assert, so a failing test leaves nothing either (the
+        // test's own node is gone by then: it lives in `send_and_watch`).
+        let _ = runtime::cleanup::remove_domain_leftovers(&self.domain);
     }
 }
 
@@ -100,8 +103,6 @@ fn wrong_frame_size_is_rejected_and_reported_and_the_service_stays_up() {
     let beat = send_and_watch(64, 48, |b| b.processed > 0).expect("a good frame was not processed");
     assert_eq!(beat.pid, stereo.child.id());
     assert!(stereo.child.try_wait().unwrap().is_none());
-    drop(stereo);
-    runtime::cleanup::remove_domain_leftovers(&domain).unwrap();
 }
 
 #[test]
@@ -120,6 +121,4 @@ fn invalid_calibration_keeps_the_service_up_and_reports_the_fault() {
         stereo.child.try_wait().unwrap().is_none(),
         "the service exited"
     );
-    drop(stereo);
-    runtime::cleanup::remove_domain_leftovers(&domain).unwrap();
 }
