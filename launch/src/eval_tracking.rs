@@ -7,8 +7,8 @@
 
 use messages::{contact_class, truth_class, CameraModel, ContactList, GroundTruth};
 use serde_json::json;
+use sim::math::wrap_pi;
 use std::collections::{BTreeMap, BTreeSet};
-use std::f64::consts::{PI, TAU};
 use tracker::eval::{score, AlongCross};
 
 /// A track within this distance of a true object is that object's track (m).
@@ -55,7 +55,6 @@ pub type LandTest = Box<dyn Fn(f64, f64) -> bool>;
 
 /// What a confirmed track looked like when it was first reported confirmed, and how long it lived:
 /// the profile of the false ones says where they come from.
-#[derive(Clone, Copy)]
 struct TrackLife {
     first_stamp_ns: u64,
     last_stamp_ns: u64,
@@ -90,7 +89,7 @@ pub struct TrackingScore {
     /// Horizontal field of view of each stereo head: (right edge, left edge) azimuth in the body
     /// frame (rad, counter-clockwise from forward), from the disparity images' camera models.
     views: BTreeMap<String, (f64, f64)>,
-    confirmed_ids: BTreeSet<u32>,
+    /// Every track reported confirmed, by id.
     lives: BTreeMap<u32, TrackLife>,
     /// Stamp of the first contact list scored (the report's times are relative to it).
     first_stamp_ns: Option<u64>,
@@ -138,10 +137,9 @@ impl TrackingScore {
 
     /// Whether a body-frame azimuth (rad) lies in some head's field of view.
     fn in_view(&self, azimuth: f64) -> bool {
-        let wrap = |a: f64| (a + PI).rem_euclid(TAU) - PI;
         self.views
             .values()
-            .any(|&(right, left)| wrap(azimuth - right) >= 0.0 && wrap(left - azimuth) >= 0.0)
+            .any(|&(right, left)| wrap_pi(azimuth - right) >= 0.0 && wrap_pi(left - azimuth) >= 0.0)
     }
 
     pub fn on_truth(&mut self, truth: &GroundTruth) {
@@ -212,7 +210,6 @@ impl TrackingScore {
             }
         }
         for c in list.as_slice().iter().filter(|c| c.confirmed == 1) {
-            self.confirmed_ids.insert(c.id);
             let (dx, dy) = (
                 c.position[0] - own.position[0],
                 c.position[1] - own.position[1],
@@ -223,7 +220,7 @@ impl TrackingScore {
                 lists: 0,
                 coasting: 0,
                 range_m: dx.hypot(dy),
-                bearing_deg: wrap_deg((dy.atan2(dx) - own.yaw).to_degrees()),
+                bearing_deg: wrap_pi(dy.atan2(dx) - own.yaw).to_degrees(),
                 age_s: c.age_s,
                 speed_mps: c.velocity[0].hypot(c.velocity[1]),
                 class: c.class,
@@ -265,8 +262,8 @@ impl TrackingScore {
     }
 
     fn false_track_ids(&self) -> impl Iterator<Item = &u32> {
-        self.confirmed_ids
-            .iter()
+        self.lives
+            .keys()
             .filter(|id| !self.matched_ids.contains(id) && !self.shore_ids.contains(id))
     }
 
@@ -289,7 +286,7 @@ impl TrackingScore {
                 };
                 json!({"id": id, "truth": truth,
                        "confirmed_at_s": since_start(l.first_stamp_ns),
-                       "confirmed_for_s": (l.last_stamp_ns - l.first_stamp_ns) as f64 * 1e-9,
+                       "confirmed_for_s": l.last_stamp_ns.saturating_sub(l.first_stamp_ns) as f64 * 1e-9,
                        "lists": l.lists, "coasting": l.coasting,
                        "range_m": l.range_m, "bearing_deg": l.bearing_deg,
                        "age_s": l.age_s, "speed_mps": l.speed_mps,
@@ -324,7 +321,7 @@ impl TrackingScore {
             "markers_within_60m_in_view": (!self.views.is_empty()).then(|| self.markers_60m_in_view.json()),
             "by_range_m": bins(&self.by_range, &RANGE_BINS_M, "m"),
             "by_range_lengths": bins(&self.by_lengths, &LENGTH_BINS, "object lengths"),
-            "confirmed_tracks": self.confirmed_ids.len(),
+            "confirmed_tracks": self.lives.len(),
             "false_tracks": self.false_tracks(),
             "shore_tracks": self.land.as_ref().map(|_| self.shore_tracks()),
             "false_tracks_per_min": (scenario_minutes > 0.0)
@@ -341,16 +338,6 @@ impl TrackingScore {
             "along_cross_3sigma_ratio": self.along_cross.sigma_ratio(),
             "along_cross_rms_error_m": self.along_cross.rms_errors(),
         })
-    }
-}
-
-/// An angle in degrees wrapped to (-180, 180].
-fn wrap_deg(a: f64) -> f64 {
-    let w = a.rem_euclid(360.0);
-    if w > 180.0 {
-        w - 360.0
-    } else {
-        w
     }
 }
 

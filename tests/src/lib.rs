@@ -4,7 +4,6 @@
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
-use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 /// Directory holding the workspace's binaries (`usv`, services, test helpers): the test executable
@@ -29,10 +28,7 @@ pub fn bin(name: &str) -> PathBuf {
 }
 
 /// Timing-sensitive process tests run one at a time: the machine may have only two cores.
-pub fn serial() -> MutexGuard<'static, ()> {
-    static LOCK: Mutex<()> = Mutex::new(());
-    LOCK.lock().unwrap_or_else(|e| e.into_inner())
-}
+pub use runtime::testing::serial;
 
 /// Polls `f` every 5 ms until it returns `Some` or `timeout` passes.
 pub fn wait_for<T>(timeout: Duration, mut f: impl FnMut() -> Option<T>) -> Option<T> {

@@ -3,6 +3,14 @@
 
 use std::ffi::OsStr;
 use std::process::{Child, Command, Stdio};
+use std::sync::{Mutex, MutexGuard};
+
+/// Holds the lock that makes timing-sensitive process tests of one test program run one at a
+/// time (exact counts through shallow subscriber buffers; the machine may have only two cores).
+pub fn serial() -> MutexGuard<'static, ()> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 pub struct ServiceProcess {
     child: Child,

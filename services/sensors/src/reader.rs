@@ -342,7 +342,6 @@ impl Recording {
     /// Decompresses a chunk, checks its CRC and returns its messages of `wanted` channels.
     fn load(&mut self, index: usize, from: u64, wanted: &[u16]) -> Result<Vec<Message>, ReadError> {
         let chunk = self.chunks[index].clone();
-        let raw = self.read_at(chunk.data.0, chunk.data.1)?;
         if chunk.uncompressed_size > MAX_CHUNK_BYTES {
             return Err(self.corrupt(
                 chunk.offset,
@@ -352,6 +351,7 @@ impl Recording {
                 ),
             ));
         }
+        let raw = self.read_at(chunk.data.0, chunk.data.1)?;
         let size = chunk.uncompressed_size as usize;
         let records = match chunk.compression.as_str() {
             "" => raw,

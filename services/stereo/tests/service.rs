@@ -8,9 +8,6 @@ use std::time::{Duration, Instant};
 
 const CALIB: &str = "width = 64\nheight = 48\nrotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\ntranslation = [-0.5, 0.0, 0.0]\n[left]\nfx = 50.0\nfy = 50.0\ncx = 31.5\ncy = 23.5\n[right]\nfx = 50.0\nfy = 50.0\ncx = 31.5\ncy = 23.5\n";
 
-/// The tests share this process's domain setting (the tool node reads it): one at a time.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
 struct Stereo {
     child: Child,
     domain: String,
@@ -88,7 +85,8 @@ fn send_and_watch(width: u32, height: u32, done: impl Fn(&Heartbeat) -> bool) ->
 
 #[test]
 fn wrong_frame_size_is_rejected_and_reported_and_the_service_stays_up() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    // The tests share this process's domain setting (the tool node reads it): one at a time.
+    let _serial = runtime::testing::serial();
     let domain = format!("stereo{}a", std::process::id());
     let mut stereo = Stereo::start(&domain, CALIB);
     let beat = send_and_watch(32, 24, |b| b.rejected > 0).expect("no rejection reported");
@@ -107,7 +105,7 @@ fn wrong_frame_size_is_rejected_and_reported_and_the_service_stays_up() {
 
 #[test]
 fn invalid_calibration_keeps_the_service_up_and_reports_the_fault() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _serial = runtime::testing::serial();
     let domain = format!("stereo{}b", std::process::id());
     let broken = CALIB.replace("fx = 50.0\nfy", "fx = -1.0\nfy");
     let mut stereo = Stereo::start(&domain, &broken);

@@ -8,15 +8,11 @@ use runtime::{Ports, Publisher};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
-use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 /// Tests that run the recorder run one at a time: they expect exact message counts through the
 /// topics' shallow subscriber buffers, and two recorders at once on two cores make a stall likelier.
-pub fn serial() -> MutexGuard<'static, ()> {
-    static LOCK: Mutex<()> = Mutex::new(());
-    LOCK.lock().unwrap_or_else(|e| e.into_inner())
-}
+pub use runtime::testing::serial;
 
 /// A domain for one test, cleaned up on drop.
 pub struct Domain {
