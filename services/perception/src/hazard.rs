@@ -136,6 +136,11 @@ pub struct LevelConfig {
     pub max_slope_deg: f64,
     /// Largest offset at the camera (m) accepted, for the same reason.
     pub max_offset_m: f64,
+    /// Only cells within this distance of the camera (m) are fitted (default: every mapped cell).
+    /// Mapping farther than about 65 m with the 640x480 heads needs it: far water's heights are
+    /// noisier (range error grows with the square of range) and far cells outnumber near ones, so
+    /// they would move the level near the boat (ARCHITECTURE.md, mapping range).
+    pub max_range_m: f64,
 }
 
 impl Default for LevelConfig {
@@ -145,6 +150,7 @@ impl Default for LevelConfig {
             min_cells: 200,
             max_slope_deg: 3.0,
             max_offset_m: 1.0,
+            max_range_m: f64::INFINITY,
         }
     }
 }
@@ -203,8 +209,14 @@ impl HazardConfig {
             return Err("temporal needs tau_s >= 0 and max_gap_s > 0".into());
         }
         let lv = &self.level;
-        if !(lv.max_slope_deg >= 0.0 && lv.max_slope_deg < 45.0 && lv.max_offset_m >= 0.0) {
-            return Err("level needs 0 <= max_slope_deg < 45 and max_offset_m >= 0".into());
+        if !(lv.max_slope_deg >= 0.0
+            && lv.max_slope_deg < 45.0
+            && lv.max_offset_m >= 0.0
+            && lv.max_range_m > 0.0)
+        {
+            return Err(
+                "level needs 0 <= max_slope_deg < 45, max_offset_m >= 0 and max_range_m > 0".into(),
+            );
         }
         let l = self.cost.lethal_probability;
         if !(l > 0.0 && l <= 1.0) {
@@ -594,6 +606,7 @@ impl HazardMapper {
             return None;
         }
         let cam = Self::camera_in_grid(xf, grid);
+        let max_range_sq = cfg.max_range_m * cfg.max_range_m;
         let mut plane = nalgebra::Vector3::<f64>::zeros();
         let mut cells = 0;
         for trim in LEVEL_TRIMS_M {
@@ -603,6 +616,9 @@ impl HazardMapper {
             for &cell in &self.touched {
                 let s = &self.stats[cell as usize];
                 let [x, y] = Self::from_camera(cell, cam, grid);
+                if x * x + y * y > max_range_sq {
+                    continue;
+                }
                 let a = nalgebra::Vector3::new(1.0, x, y);
                 let m = (s.sum_h / s.count as f32) as f64;
                 if (m - a.dot(&plane)).abs() > trim {

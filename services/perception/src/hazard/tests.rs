@@ -303,24 +303,61 @@ fn same_input_same_map() {
     assert!(a == b);
 }
 
-#[test]
-fn a_water_plane_tilted_by_a_degree_is_levelled_and_the_buoy_still_stands_out() {
+/// A camera pitched a degree further down than the stereo service's plane says: far water rises.
+fn tilted_scene(objects: Vec<Cylinder>) -> (DisparityHeader, Vec<f32>) {
     let mut s = Scene::hammerhead(640, 480);
-    s.objects.push(Cylinder {
-        east: 3.0,
-        north: 30.0,
-        radius: 0.4,
-        height: 1.6,
-    });
+    s.objects = objects;
     let mut d = Vec::new();
     s.render(&mut d);
-    // The stereo service's plane says the camera is pitched one degree further down than it is:
-    // far water then rises (about a metre at 60 m).
     let mut h = s.header(1_000_000_000, "hh_left");
     let pitch = s.pitch_rad + 1f64.to_radians();
     h.plane.normal = [0.0, -pitch.cos(), -pitch.sin()];
     h.plane.pitch = pitch;
     h.stabilized_pose.pitch = pitch;
+    (h, d)
+}
+
+#[test]
+fn a_level_fitted_on_near_cells_only_still_levels_far_water() {
+    let (h, d) = tilted_scene(Vec::new());
+    let level_within = |max_range_m: f64| {
+        let cfg = HazardConfig {
+            level: LevelConfig {
+                max_range_m,
+                ..LevelConfig::default()
+            },
+            ..config()
+        };
+        let mut mapper = HazardMapper::new(cfg, model()).unwrap();
+        let (out, summary) = map(&mut mapper, &h, &d);
+        (out, summary)
+    };
+    // Within 30 m: the tilt is found from near water and removed out to the map's 70 m.
+    let (out, summary) = level_within(30.0);
+    let level = summary.level.expect("a level fitted on near water");
+    assert!((level.tilt_deg() - 1.0).abs() < 0.2, "{level:?}");
+    let worst = (0..summary.grid.height)
+        .flat_map(|row| (0..summary.grid.width).map(move |col| (col, row)))
+        .filter(|&(col, row)| out[(row * summary.grid.width + col) as usize].observed > 0)
+        .map(|(col, row)| {
+            let c = out[(row * summary.grid.width + col) as usize];
+            (c.max_height_cm as f64 / 100.0).abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 0.2, "water left {worst} m off the level");
+    // Fewer than 200 cells within 10 m (the projection starts at 8 m): no level at all.
+    assert!(level_within(10.0).1.level.is_none());
+}
+
+#[test]
+fn a_water_plane_tilted_by_a_degree_is_levelled_and_the_buoy_still_stands_out() {
+    // Far water rises about a metre at 60 m.
+    let (h, d) = tilted_scene(vec![Cylinder {
+        east: 3.0,
+        north: 30.0,
+        radius: 0.4,
+        height: 1.6,
+    }]);
     let far_water = |out: &[MapCell], g: &GridGeometry| {
         let mut worst = 0.0f64;
         for row in 0..g.height {
