@@ -679,6 +679,15 @@ fn an_inconsistent_configuration_is_refused_with_the_reason() {
     assert!(e.contains("confirm_max_fit_sigma must be > 0"), "{e}");
 }
 
+/// The heads look east only: the west half of the map has no observation in it.
+fn look_east_only(grid: &GridGeometry, cells: &mut [MapCell]) {
+    for row in 0..grid.height {
+        for col in 0..grid.width / 2 {
+            cells[(row * grid.width + col) as usize].observed = 0;
+        }
+    }
+}
+
 #[test]
 fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
@@ -704,11 +713,7 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
             paint_hull_rim(&grid, &mut cells, flicker, [1.0, 0.0], 150);
         }
         if (20..70).contains(&k) {
-            for row in 0..grid.height {
-                for col in 0..grid.width / 2 {
-                    cells[(row * grid.width + col) as usize].observed = 0;
-                }
-            }
+            look_east_only(&grid, &mut cells);
         }
         let hdr = map_header(grid, k, 200_000_000);
         t.update(&hdr, &cells, "tracker", &mut list).unwrap();
@@ -743,6 +748,33 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
     // Back in view and not there: gone within the 2 s a track seen for 4 s may coast in view.
     let last = last_seen.unwrap();
     assert!((70..=80).contains(&last), "last reported at map {last}");
+}
+
+#[test]
+fn a_buoy_seen_for_under_two_seconds_before_it_leaves_the_view_stays_a_contact() {
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    // 5 Hz maps. A buoy at (-20, 20) detected in every map for 1.6 s from the track's birth (a
+    // head swept past it); then the heads look east only for 10 s.
+    let buoy = [-20.0, 20.0];
+    for k in 0..60u64 {
+        let mut cells = open_water(&grid);
+        if k <= 8 {
+            paint_hull_rim(&grid, &mut cells, buoy, [1.0, 0.0], 150);
+        } else {
+            look_east_only(&grid, &mut cells);
+        }
+        let hdr = map_header(grid, k, 200_000_000);
+        t.update(&hdr, &cells, "tracker", &mut list).unwrap();
+        if k >= 4 {
+            assert!(
+                confirmed_near(&list, buoy, 1.0).is_some(),
+                "map {k}: {:?}",
+                list.as_slice()
+            );
+        }
+    }
 }
 
 #[test]
