@@ -317,6 +317,23 @@ fn tilted_scene(objects: Vec<Cylinder>) -> (DisparityHeader, Vec<f32>) {
     (h, d)
 }
 
+/// Over the observed cells farther than 1.5 m from `except`: the largest height off the level (m)
+/// and the largest hazard (as a share of 128).
+fn worst_off_level(out: &[MapCell], g: &GridGeometry, except: [f64; 2]) -> (f64, f64) {
+    let (mut height, mut hazard) = (0.0f64, 0.0f64);
+    for row in 0..g.height {
+        for col in 0..g.width {
+            let c = out[(row * g.width + col) as usize];
+            let p = g.cell_center(col, row);
+            if c.observed > 0 && (p[0] - except[0]).hypot(p[1] - except[1]) > 1.5 {
+                height = height.max((c.max_height_cm as f64 / 100.0).abs());
+                hazard = hazard.max(c.hazard as f64 / 128.0);
+            }
+        }
+    }
+    (height, hazard)
+}
+
 #[test]
 fn a_level_fitted_on_near_cells_only_still_levels_far_water() {
     let (h, d) = tilted_scene(Vec::new());
@@ -328,22 +345,14 @@ fn a_level_fitted_on_near_cells_only_still_levels_far_water() {
             },
             ..config()
         };
-        let mut mapper = HazardMapper::new(cfg, model()).unwrap();
-        let (out, summary) = map(&mut mapper, &h, &d);
-        (out, summary)
+        map(&mut HazardMapper::new(cfg, model()).unwrap(), &h, &d)
     };
     // Within 30 m: the tilt is found from near water and removed out to the map's 70 m.
     let (out, summary) = level_within(30.0);
     let level = summary.level.expect("a level fitted on near water");
     assert!((level.tilt_deg() - 1.0).abs() < 0.2, "{level:?}");
-    let worst = (0..summary.grid.height)
-        .flat_map(|row| (0..summary.grid.width).map(move |col| (col, row)))
-        .filter(|&(col, row)| out[(row * summary.grid.width + col) as usize].observed > 0)
-        .map(|(col, row)| {
-            let c = out[(row * summary.grid.width + col) as usize];
-            (c.max_height_cm as f64 / 100.0).abs()
-        })
-        .fold(0.0, f64::max);
+    // No object in the scene: every observed cell is water.
+    let (worst, _) = worst_off_level(&out, &summary.grid, [f64::INFINITY; 2]);
     assert!(worst < 0.2, "water left {worst} m off the level");
     // Fewer than 200 cells within 10 m (the projection starts at 8 m): no level at all.
     assert!(level_within(10.0).1.level.is_none());
@@ -358,20 +367,10 @@ fn a_water_plane_tilted_by_a_degree_is_levelled_and_the_buoy_still_stands_out() 
         radius: 0.4,
         height: 1.6,
     }]);
+    // Off the buoy: water within the level, and only the buoy may be a hazard.
     let far_water = |out: &[MapCell], g: &GridGeometry| {
-        let mut worst = 0.0f64;
-        for row in 0..g.height {
-            for col in 0..g.width {
-                let c = out[(row * g.width + col) as usize];
-                let p = g.cell_center(col, row);
-                if c.observed > 0 && (p[0] - 3.0).hypot(p[1] - 30.0) > 1.5 {
-                    worst = worst.max((c.max_height_cm as f64 / 100.0).abs());
-                    // Only the buoy may be a hazard.
-                    worst = worst.max(c.hazard as f64 / 128.0);
-                }
-            }
-        }
-        worst
+        let (height, hazard) = worst_off_level(out, g, [3.0, 30.0]);
+        height.max(hazard)
     };
     let unlevelled = HazardConfig {
         level: LevelConfig {
