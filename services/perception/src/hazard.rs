@@ -159,6 +159,40 @@ impl Default for LevelConfig {
 /// left out, so the first pass sees everything but tall objects and the last only water.
 const LEVEL_TRIMS_M: [f64; 4] = [2.0, 1.0, 0.5, 0.3];
 
+/// Far objects ranged as one: stereo range noise grows with the square of range (about 5 m, one
+/// sigma, at 100 m on the 640x480 heads), so the pixels of one far boat land over 10-20 m of range
+/// and map as a long blob. Beyond `min_range_m`, elevated sampled pixels are grouped into image
+/// segments (4-connected, neighbours within `join_px` of disparity); a segment of at least
+/// `min_points` whose disparities agree (median absolute deviation at most `max_mad_px`: a
+/// vertical surface, not water or a bank receding in range) is projected again at its median
+/// disparity. Pixels beyond the projection's range limit join segments too, so an object across
+/// the limit is placed by all of its pixels. Off by default (`min_range_m` infinite).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SegmentConfig {
+    pub min_range_m: f64,
+    pub join_px: f32,
+    pub min_points: u32,
+    pub max_mad_px: f32,
+}
+
+impl Default for SegmentConfig {
+    fn default() -> Self {
+        Self {
+            min_range_m: f64::INFINITY,
+            join_px: 1.0,
+            min_points: 4,
+            max_mad_px: 0.5,
+        }
+    }
+}
+
+impl SegmentConfig {
+    fn enabled(&self) -> bool {
+        self.min_range_m.is_finite()
+    }
+}
+
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct CostConfig {
@@ -183,6 +217,7 @@ pub struct HazardConfig {
     pub spatial: SpatialConfig,
     pub temporal: TemporalConfig,
     pub level: LevelConfig,
+    pub segments: SegmentConfig,
     pub cost: CostConfig,
 }
 
@@ -216,6 +251,17 @@ impl HazardConfig {
         {
             return Err(
                 "level needs 0 <= max_slope_deg < 45, max_offset_m >= 0 and max_range_m > 0".into(),
+            );
+        }
+        let sg = &self.segments;
+        if !(sg.min_range_m > 0.0
+            && sg.join_px > 0.0
+            && sg.min_points >= 1
+            && sg.max_mad_px >= 0.0)
+        {
+            return Err(
+                "segments need min_range_m > 0, join_px > 0, min_points >= 1 and max_mad_px >= 0"
+                    .into(),
             );
         }
         let l = self.cost.lethal_probability;
@@ -266,6 +312,8 @@ pub struct FrameSummary {
     pub hazard_cells: usize,
     /// Cells whose elevated points were dropped as isolated.
     pub isolated_cells: usize,
+    /// Far segments projected again at their median disparity ([`SegmentConfig`]).
+    pub far_segments: usize,
     /// The residual water level subtracted from the heights, if one was fitted.
     pub level: Option<WaterLevel>,
 }
@@ -287,7 +335,9 @@ impl WaterLevel {
     }
 }
 
-/// A sampled pixel's cell (`u32::MAX` = none), height above the water and optical depth.
+/// A sampled pixel's cell (`u32::MAX` = none), height above the water and optical depth. A pixel
+/// with a valid point outside the range limit or the grid keeps its height and depth (depth 0: no
+/// point).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PointSample {
     pub cell: u32,
@@ -296,6 +346,11 @@ pub struct PointSample {
 }
 
 const NO_CELL: u32 = u32::MAX;
+const NO_POINT: PointSample = PointSample {
+    cell: NO_CELL,
+    height: 0.0,
+    depth: 0.0,
+};
 
 #[derive(Clone, Copy, Default)]
 struct CellStats {
@@ -343,6 +398,16 @@ pub struct HazardMapper {
     scored: Vec<ScoredCell>,
     heads: Vec<HeadMemory>,
     sampled_cols: usize,
+    segments: SegmentScratch,
+}
+
+/// Reused buffers of the far-segment grouping (a frame allocates nothing).
+#[derive(Default)]
+struct SegmentScratch {
+    visited: Vec<bool>,
+    stack: Vec<u32>,
+    members: Vec<u32>,
+    disparities: Vec<f32>,
 }
 
 /// Absolute index of the grid's south-west cell and the grid, snapped so that cell edges lie on
@@ -378,6 +443,7 @@ impl HazardMapper {
             scored: Vec::with_capacity(n),
             heads: Vec::new(),
             sampled_cols: 0,
+            segments: SegmentScratch::default(),
             config,
             model,
         })
@@ -445,7 +511,9 @@ impl HazardMapper {
             });
         }
         let head_index = self.head_memory(frame.header)?;
-        self.project(frame, &xf, &grid);
+        let projector = Projector::new(frame.header, &self.config.projection, &xf, &grid);
+        self.project(frame, &projector);
+        let far_segments = self.range_far_segments(frame.header, &projector);
         self.accumulate();
         let level = self.level(&xf, &grid);
         if let Some(l) = &level {
@@ -490,6 +558,7 @@ impl HazardMapper {
             observed_cells: self.scored.len(),
             hazard_cells,
             isolated_cells,
+            far_segments,
             level,
         })
     }
@@ -516,7 +585,7 @@ impl HazardMapper {
     }
 
     /// Disparity -> optical point -> ENU -> cell, in parallel over sampled rows.
-    fn project(&mut self, frame: &Frame<'_>, xf: &CameraToWorld, grid: &GridGeometry) {
+    fn project(&mut self, frame: &Frame<'_>, projector: &Projector) {
         let h = frame.header;
         let p = &self.config.projection;
         let (w, ht) = (h.width as usize, h.height as usize);
@@ -525,23 +594,8 @@ impl HazardMapper {
         let rows = ht.div_ceil(rs);
         self.sampled_cols = cols;
         self.points.resize(rows * cols, PointSample::default());
-        let c = &h.camera;
-        let fb = (c.fx * c.baseline_m) as f32;
-        let (fx, fy, cx, cy) = (c.fx as f32, c.fy as f32, c.cx as f32, c.cy as f32);
-        let (zmin, zmax) = (p.min_range_m as f32, p.max_range_m as f32);
-        let (hmin, hmax) = (p.min_height_m as f32, p.max_height_m as f32);
-        let inv_res = (1.0 / grid.resolution_m) as f32;
-        // Cell coordinates relative to the grid's south-west corner, in f32 about the camera to
-        // keep precision far from the ENU origin.
-        let sw = [
-            grid.center[0] - grid.width as f64 * grid.resolution_m / 2.0,
-            grid.center[1] - grid.height as f64 * grid.resolution_m / 2.0,
-        ];
-        let mut local = *xf;
-        local.origin[0] = (xf.origin[0] as f64 - sw[0]) as f32;
-        local.origin[1] = (xf.origin[1] as f64 - sw[1]) as f32;
-        let (gw, gh) = (grid.width as f32, grid.height as f32);
-        let gwidth = grid.width;
+        let fb = (h.camera.fx * h.camera.baseline_m) as f32;
+        let zmin = p.min_range_m as f32;
         let disp = frame.disparity;
         self.points
             .par_chunks_mut(cols)
@@ -549,37 +603,90 @@ impl HazardMapper {
             .for_each(|(r, row)| {
                 let v = r * rs;
                 let line = &disp[v * w..v * w + w];
-                let vy = (v as f32 - cy) / fy;
                 for (k, out) in row.iter_mut().enumerate() {
                     let u = k * cs;
                     let d = line[u];
-                    *out = PointSample {
-                        cell: NO_CELL,
-                        height: 0.0,
-                        depth: 0.0,
-                    };
+                    *out = NO_POINT;
                     if d.is_nan() || d <= 0.0 {
                         continue; // NaN or at infinity
                     }
                     let z = fb / d;
-                    if z < zmin || z > zmax {
+                    if z < zmin {
                         continue;
                     }
-                    let q = local.apply([(u as f32 - cx) / fx * z, vy * z, z]);
-                    if q[2] < hmin || q[2] > hmax {
-                        continue;
-                    }
-                    let (col, wrow) = (q[0] * inv_res, q[1] * inv_res);
-                    if col < 0.0 || wrow < 0.0 || col >= gw || wrow >= gh {
-                        continue;
-                    }
-                    *out = PointSample {
-                        cell: wrow as u32 * gwidth + col as u32,
-                        height: q[2],
-                        depth: z,
-                    };
+                    *out = projector.sample(u, v, z).unwrap_or(NO_POINT);
                 }
             });
+    }
+
+    /// Groups far elevated pixels into image segments and projects each agreeing segment again at
+    /// its median disparity ([`SegmentConfig`]). Returns the segments so placed.
+    fn range_far_segments(&mut self, h: &DisparityHeader, projector: &Projector) -> usize {
+        let sc = &self.config.segments;
+        if !sc.enabled() {
+            return 0;
+        }
+        let fb = (h.camera.fx * h.camera.baseline_m) as f32;
+        let (zmin, elevated) = (sc.min_range_m as f32, self.model.elevated_height_m);
+        let candidate = |p: &PointSample| p.depth >= zmin && p.height > elevated;
+        let p = &self.config.projection;
+        let (rs, cs, cols) = (p.row_step, p.col_step, self.sampled_cols);
+        let n = self.points.len();
+        let SegmentScratch {
+            visited,
+            stack,
+            members,
+            disparities,
+        } = &mut self.segments;
+        visited.clear();
+        visited.resize(n, false);
+        let mut placed = 0;
+        for seed in 0..n {
+            if visited[seed] || !candidate(&self.points[seed]) {
+                continue;
+            }
+            visited[seed] = true;
+            stack.clear();
+            members.clear();
+            stack.push(seed as u32);
+            while let Some(i) = stack.pop() {
+                let i = i as usize;
+                members.push(i as u32);
+                let d = fb / self.points[i].depth;
+                let (col, row) = (i % cols, i / cols);
+                let neighbours = [
+                    (col > 0).then(|| i - 1),
+                    (col + 1 < cols).then(|| i + 1),
+                    (row > 0).then(|| i - cols),
+                    (i + cols < n).then(|| i + cols),
+                ];
+                for j in neighbours.into_iter().flatten() {
+                    let q = &self.points[j];
+                    if !visited[j] && candidate(q) && (fb / q.depth - d).abs() <= sc.join_px {
+                        visited[j] = true;
+                        stack.push(j as u32);
+                    }
+                }
+            }
+            if members.len() < sc.min_points as usize {
+                continue;
+            }
+            disparities.clear();
+            disparities.extend(members.iter().map(|&i| fb / self.points[i as usize].depth));
+            let median = median_of(disparities);
+            disparities.iter_mut().for_each(|d| *d = (*d - median).abs());
+            if median_of(disparities) > sc.max_mad_px {
+                continue;
+            }
+            let z = fb / median;
+            for &i in members.iter() {
+                let i = i as usize;
+                let (u, v) = ((i % cols) * cs, (i / cols) * rs);
+                self.points[i] = projector.sample(u, v, z).unwrap_or(NO_POINT);
+            }
+            placed += 1;
+        }
+        placed
     }
 
     /// Grid-local coordinates of the camera (m from the grid's south-west corner).
@@ -791,6 +898,86 @@ impl HazardMapper {
             }
         }
     }
+}
+
+/// Optical ray -> ENU relative to the grid's south-west corner -> cell: the projection of one
+/// frame, shared by the per-pixel pass and the far segments.
+struct Projector {
+    /// `world_from_optical` with the origin in grid-local metres (f32 about the camera keeps
+    /// precision far from the ENU origin).
+    local: CameraToWorld,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    zmax: f32,
+    hmin: f32,
+    hmax: f32,
+    inv_res: f32,
+    grid_size: [f32; 2],
+    grid_width: u32,
+}
+
+impl Projector {
+    fn new(
+        h: &DisparityHeader,
+        p: &ProjectionConfig,
+        xf: &CameraToWorld,
+        grid: &GridGeometry,
+    ) -> Self {
+        let sw = [
+            grid.center[0] - grid.width as f64 * grid.resolution_m / 2.0,
+            grid.center[1] - grid.height as f64 * grid.resolution_m / 2.0,
+        ];
+        let mut local = *xf;
+        local.origin[0] = (xf.origin[0] as f64 - sw[0]) as f32;
+        local.origin[1] = (xf.origin[1] as f64 - sw[1]) as f32;
+        let c = &h.camera;
+        Self {
+            local,
+            fx: c.fx as f32,
+            fy: c.fy as f32,
+            cx: c.cx as f32,
+            cy: c.cy as f32,
+            zmax: p.max_range_m as f32,
+            hmin: p.min_height_m as f32,
+            hmax: p.max_height_m as f32,
+            inv_res: (1.0 / grid.resolution_m) as f32,
+            grid_size: [grid.width as f32, grid.height as f32],
+            grid_width: grid.width,
+        }
+    }
+
+    /// Pixel (u, v) at optical depth `z`: `None` outside the height limits; without a cell beyond
+    /// the range limit or off the grid.
+    fn sample(&self, u: usize, v: usize, z: f32) -> Option<PointSample> {
+        let vy = (v as f32 - self.cy) / self.fy;
+        let q = self
+            .local
+            .apply([(u as f32 - self.cx) / self.fx * z, vy * z, z]);
+        if q[2] < self.hmin || q[2] > self.hmax {
+            return None;
+        }
+        let (col, row) = (q[0] * self.inv_res, q[1] * self.inv_res);
+        let [gw, gh] = self.grid_size;
+        let on_grid = col >= 0.0 && row >= 0.0 && col < gw && row < gh;
+        let cell = if z <= self.zmax && on_grid {
+            row as u32 * self.grid_width + col as u32
+        } else {
+            NO_CELL
+        };
+        Some(PointSample {
+            cell,
+            height: q[2],
+            depth: z,
+        })
+    }
+}
+
+/// Median of a non-empty slice (reorders it).
+fn median_of(values: &mut [f32]) -> f32 {
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f32::total_cmp).1
 }
 
 fn cm(m: f32) -> i16 {

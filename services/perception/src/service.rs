@@ -10,7 +10,7 @@
 
 use crate::hazard::{
     CostConfig, Frame, FrameError, FrameSummary, GridConfig, HazardConfig, HazardMapper,
-    LevelConfig, ProjectionConfig, SpatialConfig, TemporalConfig,
+    LevelConfig, SegmentConfig, ProjectionConfig, SpatialConfig, TemporalConfig,
 };
 use crate::model::HazardModel;
 use anyhow::Context;
@@ -50,6 +50,8 @@ pub struct ServiceConfig {
     #[serde(default)]
     pub level: LevelConfig,
     #[serde(default)]
+    pub segments: SegmentConfig,
+    #[serde(default)]
     pub cost: CostConfig,
     /// Water detection on colour heads; off unless `[water] heads` names some.
     #[serde(default)]
@@ -76,6 +78,7 @@ impl ServiceConfig {
             spatial: self.spatial.clone(),
             temporal: self.temporal.clone(),
             level: self.level.clone(),
+            segments: self.segments.clone(),
             cost: self.cost.clone(),
         }
     }

@@ -402,3 +402,89 @@ fn a_water_plane_tilted_by_a_degree_is_levelled_and_the_buoy_still_stands_out() 
         "buoy: {dist} m, hazard {hazard}"
     );
 }
+
+/// Ranges (m from the camera) of the cells with elevated points within `radius` of (east, north).
+fn elevated_ranges(out: &[MapCell], g: &GridGeometry, target: [f64; 2], radius: f64) -> Vec<f64> {
+    let mut ranges = Vec::new();
+    for row in 0..g.height {
+        for col in 0..g.width {
+            let c = out[(row * g.width + col) as usize];
+            let p = g.cell_center(col, row);
+            if c.observed > 0
+                && c.max_height_cm > 30
+                && (p[0] - target[0]).hypot(p[1] - target[1]) <= radius
+            {
+                ranges.push(p[0].hypot(p[1]));
+            }
+        }
+    }
+    ranges
+}
+
+#[test]
+fn a_far_boat_is_placed_at_its_median_range_not_smeared_along_it() {
+    // A boat-sized cylinder 90 m ahead (the camera looks north from the origin), with the
+    // disparity noise that spreads its pixels over +-6 m of range there.
+    let mut s = Scene::hammerhead(640, 480);
+    s.noise_px = 0.4;
+    let boat = Cylinder {
+        east: 0.0,
+        north: 90.0,
+        radius: 2.5,
+        height: 2.0,
+    };
+    s.objects.push(boat);
+    let mut d = Vec::new();
+    s.render(&mut d);
+    let h = s.header(1_000_000_000, "hh_left");
+    let mut far = config();
+    far.grid.width = 440;
+    far.grid.height = 440;
+    far.projection.max_range_m = 100.0;
+    let (ahead, search) = ([boat.east, boat.north], 15.0);
+
+    let smeared = map(&mut HazardMapper::new(far.clone(), model()).unwrap(), &h, &d);
+    let r = elevated_ranges(&smeared.0, &smeared.1.grid, ahead, search);
+    let spread = r.iter().cloned().fold(f64::MIN, f64::max) - r.iter().cloned().fold(f64::MAX, f64::min);
+    assert!(spread > 6.0, "without segments the boat spans {spread} m of range");
+    assert_eq!(smeared.1.far_segments, 0);
+
+    far.segments.min_range_m = 50.0;
+    let (out, summary) = map(&mut HazardMapper::new(far, model()).unwrap(), &h, &d);
+    assert_eq!(summary.far_segments, 1, "{summary:?}");
+    let r = elevated_ranges(&out, &summary.grid, ahead, search);
+    assert!(r.len() >= 3, "{r:?}");
+    // The visible face is 87.5-90 m out; one median range puts every cell within a cell or two
+    // of it (a little nearer: of the boat's low pixels, those reading nearer stand higher and are
+    // the ones above the elevated height).
+    assert!(r.iter().all(|&x| (85.5..=90.5).contains(&x)), "{r:?}");
+    let (height, hazard, _) = best_near(&out, &summary.grid, boat.east, boat.north, search);
+    assert!((height - 2.0).abs() < 0.3 && hazard >= 128, "{height} {hazard}");
+}
+
+#[test]
+fn a_boat_beyond_the_range_limit_stays_out_of_the_map() {
+    // 105 m out, past the 100 m limit: its segment's median range is beyond it, so none of its
+    // pixels (some of which read nearer than 100 m) is mapped.
+    let mut s = Scene::hammerhead(640, 480);
+    s.noise_px = 0.4;
+    s.objects.push(Cylinder {
+        east: 0.0,
+        north: 105.0,
+        radius: 2.5,
+        height: 2.0,
+    });
+    let mut d = Vec::new();
+    s.render(&mut d);
+    let h = s.header(1_000_000_000, "hh_left");
+    let mut far = config();
+    far.grid.width = 440;
+    far.grid.height = 440;
+    far.projection.max_range_m = 100.0;
+    let smeared = map(&mut HazardMapper::new(far.clone(), model()).unwrap(), &h, &d);
+    assert!(!elevated_ranges(&smeared.0, &smeared.1.grid, [0.0, 105.0], 20.0).is_empty());
+    far.segments.min_range_m = 50.0;
+    let (out, summary) = map(&mut HazardMapper::new(far, model()).unwrap(), &h, &d);
+    assert_eq!(summary.far_segments, 1, "{summary:?}");
+    assert!(elevated_ranges(&out, &summary.grid, [0.0, 105.0], 20.0).is_empty());
+}
