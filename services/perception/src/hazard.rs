@@ -254,10 +254,7 @@ impl HazardConfig {
             );
         }
         let sg = &self.segments;
-        if !(sg.min_range_m > 0.0
-            && sg.join_px > 0.0
-            && sg.min_points >= 1
-            && sg.max_mad_px >= 0.0)
+        if !(sg.min_range_m > 0.0 && sg.join_px > 0.0 && sg.min_points >= 1 && sg.max_mad_px >= 0.0)
         {
             return Err(
                 "segments need min_range_m > 0, join_px > 0, min_points >= 1 and max_mad_px >= 0"
@@ -674,7 +671,9 @@ impl HazardMapper {
             disparities.clear();
             disparities.extend(members.iter().map(|&i| fb / self.points[i as usize].depth));
             let median = median_of(disparities);
-            disparities.iter_mut().for_each(|d| *d = (*d - median).abs());
+            disparities
+                .iter_mut()
+                .for_each(|d| *d = (*d - median).abs());
             if median_of(disparities) > sc.max_mad_px {
                 continue;
             }

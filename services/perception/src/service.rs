@@ -10,7 +10,7 @@
 
 use crate::hazard::{
     CostConfig, Frame, FrameError, FrameSummary, GridConfig, HazardConfig, HazardMapper,
-    LevelConfig, SegmentConfig, ProjectionConfig, SpatialConfig, TemporalConfig,
+    LevelConfig, ProjectionConfig, SegmentConfig, SpatialConfig, TemporalConfig,
 };
 use crate::model::HazardModel;
 use anyhow::Context;

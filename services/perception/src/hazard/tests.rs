@@ -443,10 +443,18 @@ fn a_far_boat_is_placed_at_its_median_range_not_smeared_along_it() {
     far.projection.max_range_m = 100.0;
     let (ahead, search) = ([boat.east, boat.north], 15.0);
 
-    let smeared = map(&mut HazardMapper::new(far.clone(), model()).unwrap(), &h, &d);
+    let smeared = map(
+        &mut HazardMapper::new(far.clone(), model()).unwrap(),
+        &h,
+        &d,
+    );
     let r = elevated_ranges(&smeared.0, &smeared.1.grid, ahead, search);
-    let spread = r.iter().cloned().fold(f64::MIN, f64::max) - r.iter().cloned().fold(f64::MAX, f64::min);
-    assert!(spread > 6.0, "without segments the boat spans {spread} m of range");
+    let spread =
+        r.iter().cloned().fold(f64::MIN, f64::max) - r.iter().cloned().fold(f64::MAX, f64::min);
+    assert!(
+        spread > 6.0,
+        "without segments the boat spans {spread} m of range"
+    );
     assert_eq!(smeared.1.far_segments, 0);
 
     far.segments.min_range_m = 50.0;
@@ -459,7 +467,10 @@ fn a_far_boat_is_placed_at_its_median_range_not_smeared_along_it() {
     // the ones above the elevated height).
     assert!(r.iter().all(|&x| (85.5..=90.5).contains(&x)), "{r:?}");
     let (height, hazard, _) = best_near(&out, &summary.grid, boat.east, boat.north, search);
-    assert!((height - 2.0).abs() < 0.3 && hazard >= 128, "{height} {hazard}");
+    assert!(
+        (height - 2.0).abs() < 0.3 && hazard >= 128,
+        "{height} {hazard}"
+    );
 }
 
 #[test]
@@ -481,7 +492,11 @@ fn a_boat_beyond_the_range_limit_stays_out_of_the_map() {
     far.grid.width = 440;
     far.grid.height = 440;
     far.projection.max_range_m = 100.0;
-    let smeared = map(&mut HazardMapper::new(far.clone(), model()).unwrap(), &h, &d);
+    let smeared = map(
+        &mut HazardMapper::new(far.clone(), model()).unwrap(),
+        &h,
+        &d,
+    );
     assert!(!elevated_ranges(&smeared.0, &smeared.1.grid, [0.0, 105.0], 20.0).is_empty());
     far.segments.min_range_m = 50.0;
     let (out, summary) = map(&mut HazardMapper::new(far, model()).unwrap(), &h, &d);
