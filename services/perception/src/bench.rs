@@ -3,7 +3,7 @@
 
 use crate::hazard::{Frame, GridConfig, HazardConfig, HazardMapper};
 use crate::model::HazardModel;
-use crate::synthetic::{Cylinder, Scene};
+use crate::synthetic::Scene;
 use anyhow::Context;
 use messages::{MapCell, Pose};
 use std::path::PathBuf;
@@ -23,26 +23,13 @@ pub struct BenchArgs {
     /// A few frames only.
     #[arg(long)]
     pub quick: bool,
+    /// Map to 100 m as the simulated sets do: far segments from 50 m, the level fitted within 65 m.
+    #[arg(long)]
+    pub far_segments: bool,
 }
 
 pub fn default_model_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/hazard.json")
-}
-
-fn scene() -> Scene {
-    let mut s = Scene::hammerhead(1280, 960);
-    s.noise_px = 0.3;
-    for k in 0..12 {
-        let range = 15.0 + 7.0 * k as f64;
-        let bearing = (k as f64 * 0.7).sin() * 0.4;
-        s.objects.push(Cylinder {
-            east: range * (90f64.to_radians() + bearing).cos(),
-            north: range * (90f64.to_radians() + bearing).sin(),
-            radius: 0.5 + 0.1 * (k % 3) as f64,
-            height: 1.0 + 0.5 * (k % 4) as f64,
-        });
-    }
-    s
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -52,7 +39,7 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let path = args.model.clone().unwrap_or_else(default_model_path);
     let model = HazardModel::load(&path)?;
-    let config = HazardConfig {
+    let mut config = HazardConfig {
         grid: GridConfig {
             width: args.grid,
             height: args.grid,
@@ -60,13 +47,18 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         },
         ..Default::default()
     };
+    if args.far_segments {
+        config.projection.max_range_m = 100.0;
+        config.level.max_range_m = 65.0;
+        config.segments.min_range_m = 50.0;
+    }
     let frames = if args.quick { 5 } else { args.frames.max(1) };
-    let s = scene();
+    let s = Scene::buoy_row(1280, 960);
     let mut disparity = Vec::new();
     s.render(&mut disparity);
     let valid = disparity.iter().filter(|d| d.is_finite()).count();
     println!(
-        "hazard map: {}x{} disparity ({:.0}% valid), {}x{} grid at 0.5 m, row/col step {}/{}, {} threads",
+        "hazard map: {}x{} disparity ({:.0}% valid), {}x{} grid at 0.5 m, row/col step {}/{}, to {} m{}, {} threads",
         s.width,
         s.height,
         100.0 * valid as f64 / disparity.len() as f64,
@@ -74,6 +66,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         args.grid,
         config.projection.row_step,
         config.projection.col_step,
+        config.projection.max_range_m,
+        if args.far_segments {
+            " with far segments"
+        } else {
+            ""
+        },
         rayon::current_num_threads()
     );
     let mut medians = Vec::new();
@@ -113,11 +111,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         medians.push(median);
         let s = summary.unwrap();
         println!(
-            "  {:>9}: median {median:.2} ms, p90 {p90:.2} ms per frame ({} points, {} observed cells, {} hazard cells)",
+            "  {:>9}: median {median:.2} ms, p90 {p90:.2} ms per frame ({} points, {} observed cells, {} hazard cells, {} far segments)",
             if threads == 0 { "rayon" } else { "1 thread" },
             s.points,
             s.observed_cells,
-            s.hazard_cells
+            s.hazard_cells,
+            s.far_segments
         );
     }
     println!("  speed-up on the pool: {:.2}x", medians[1] / medians[0]);

@@ -52,6 +52,24 @@ impl Scene {
         }
     }
 
+    /// Twelve buoys 15-92 m ahead (every 7 m, bearings within 23 deg, 1-2.5 m high) with
+    /// matcher-like noise (0.3 px): the hazard benchmark's scene.
+    pub fn buoy_row(width: u32, height: u32) -> Self {
+        let mut s = Self::hammerhead(width, height);
+        s.noise_px = 0.3;
+        for k in 0..12 {
+            let range = 15.0 + 7.0 * k as f64;
+            let bearing = (k as f64 * 0.7).sin() * 0.4;
+            s.objects.push(Cylinder {
+                east: range * (90f64.to_radians() + bearing).cos(),
+                north: range * (90f64.to_radians() + bearing).sin(),
+                radius: 0.5 + 0.1 * (k % 3) as f64,
+                height: 1.0 + 0.5 * (k % 4) as f64,
+            });
+        }
+        s
+    }
+
     fn cx(&self) -> f64 {
         (self.width as f64 - 1.0) / 2.0
     }

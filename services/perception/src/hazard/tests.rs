@@ -403,6 +403,15 @@ fn a_water_plane_tilted_by_a_degree_is_levelled_and_the_buoy_still_stands_out() 
     );
 }
 
+/// The test grid grown to hold 100 m ahead, mapped to 100 m (far segments still off).
+fn config_to_100_m() -> HazardConfig {
+    let mut c = config();
+    c.grid.width = 440;
+    c.grid.height = 440;
+    c.projection.max_range_m = 100.0;
+    c
+}
+
 /// Ranges (m from the camera) of the cells with elevated points within `radius` of (east, north).
 fn elevated_ranges(out: &[MapCell], g: &GridGeometry, target: [f64; 2], radius: f64) -> Vec<f64> {
     let mut ranges = Vec::new();
@@ -437,10 +446,7 @@ fn a_far_boat_is_placed_at_its_median_range_not_smeared_along_it() {
     let mut d = Vec::new();
     s.render(&mut d);
     let h = s.header(1_000_000_000, "hh_left");
-    let mut far = config();
-    far.grid.width = 440;
-    far.grid.height = 440;
-    far.projection.max_range_m = 100.0;
+    let mut far = config_to_100_m();
     let (ahead, search) = ([boat.east, boat.north], 15.0);
 
     let smeared = map(
@@ -488,10 +494,7 @@ fn a_boat_beyond_the_range_limit_stays_out_of_the_map() {
     let mut d = Vec::new();
     s.render(&mut d);
     let h = s.header(1_000_000_000, "hh_left");
-    let mut far = config();
-    far.grid.width = 440;
-    far.grid.height = 440;
-    far.projection.max_range_m = 100.0;
+    let mut far = config_to_100_m();
     let smeared = map(
         &mut HazardMapper::new(far.clone(), model()).unwrap(),
         &h,
@@ -502,4 +505,33 @@ fn a_boat_beyond_the_range_limit_stays_out_of_the_map() {
     let (out, summary) = map(&mut HazardMapper::new(far, model()).unwrap(), &h, &d);
     assert_eq!(summary.far_segments, 1, "{summary:?}");
     assert!(elevated_ranges(&out, &summary.grid, [0.0, 105.0], 20.0).is_empty());
+}
+
+#[test]
+fn far_segments_put_a_row_of_far_buoys_nearer_where_they_are() {
+    // The benchmark's buoys, 15-92 m out, on the sets' 640x480 heads.
+    let s = Scene::buoy_row(640, 480);
+    let mut d = Vec::new();
+    s.render(&mut d);
+    let h = s.header(1_000_000_000, "hh_left");
+    let mut far = config_to_100_m();
+    // Distance (m) of the highest cell within 3 m from each buoy 55 m or more out.
+    let offsets = |cfg: HazardConfig| -> Vec<f64> {
+        let (out, summary) = map(&mut HazardMapper::new(cfg, model()).unwrap(), &h, &d);
+        s.objects
+            .iter()
+            .filter(|o| o.east.hypot(o.north) >= 55.0)
+            .map(|o| best_near(&out, &summary.grid, o.east, o.north, 3.0).2)
+            .collect()
+    };
+    let smeared = offsets(far.clone());
+    far.segments.min_range_m = 50.0;
+    let placed = offsets(far);
+    assert_eq!(placed.len(), 6);
+    assert!(placed.iter().all(|&x| x <= 2.0), "{placed:?}");
+    let sum = |v: &[f64]| v.iter().sum::<f64>();
+    assert!(
+        sum(&placed) < 0.7 * sum(&smeared),
+        "{placed:?} against {smeared:?}"
+    );
 }
