@@ -510,7 +510,7 @@ impl HazardMapper {
         let head_index = self.head_memory(frame.header)?;
         let projector = Projector::new(frame.header, &self.config.projection, &xf, &grid);
         self.project(frame, &projector);
-        let far_segments = self.range_far_segments(frame.header, &projector);
+        let far_segments = self.range_far_segments(&projector);
         self.accumulate();
         let level = self.level(&xf, &grid);
         if let Some(l) = &level {
@@ -591,8 +591,7 @@ impl HazardMapper {
         let rows = ht.div_ceil(rs);
         self.sampled_cols = cols;
         self.points.resize(rows * cols, PointSample::default());
-        let fb = (h.camera.fx * h.camera.baseline_m) as f32;
-        let zmin = p.min_range_m as f32;
+        let (fb, zmin) = (projector.fb, p.min_range_m as f32);
         let disp = frame.disparity;
         self.points
             .par_chunks_mut(cols)
@@ -618,12 +617,12 @@ impl HazardMapper {
 
     /// Groups far elevated pixels into image segments and projects each agreeing segment again at
     /// its median disparity ([`SegmentConfig`]). Returns the segments so placed.
-    fn range_far_segments(&mut self, h: &DisparityHeader, projector: &Projector) -> usize {
+    fn range_far_segments(&mut self, projector: &Projector) -> usize {
         let sc = &self.config.segments;
         if !sc.enabled() {
             return 0;
         }
-        let fb = (h.camera.fx * h.camera.baseline_m) as f32;
+        let fb = projector.fb;
         let (zmin, elevated) = (sc.min_range_m as f32, self.model.elevated_height_m);
         let candidate = |p: &PointSample| p.depth >= zmin && p.height > elevated;
         let p = &self.config.projection;
@@ -905,6 +904,8 @@ struct Projector {
     /// `world_from_optical` with the origin in grid-local metres (f32 about the camera keeps
     /// precision far from the ENU origin).
     local: CameraToWorld,
+    /// Focal length times baseline (px m): depth = fb / disparity.
+    fb: f32,
     fx: f32,
     fy: f32,
     cx: f32,
@@ -924,16 +925,14 @@ impl Projector {
         xf: &CameraToWorld,
         grid: &GridGeometry,
     ) -> Self {
-        let sw = [
-            grid.center[0] - grid.width as f64 * grid.resolution_m / 2.0,
-            grid.center[1] - grid.height as f64 * grid.resolution_m / 2.0,
-        ];
+        let cam = HazardMapper::camera_in_grid(xf, grid);
         let mut local = *xf;
-        local.origin[0] = (xf.origin[0] as f64 - sw[0]) as f32;
-        local.origin[1] = (xf.origin[1] as f64 - sw[1]) as f32;
+        local.origin[0] = cam[0] as f32;
+        local.origin[1] = cam[1] as f32;
         let c = &h.camera;
         Self {
             local,
+            fb: (c.fx * c.baseline_m) as f32,
             fx: c.fx as f32,
             fy: c.fy as f32,
             cx: c.cx as f32,

@@ -263,9 +263,9 @@ impl Track {
     /// not move, while a moving boat's component grows by the cells the map still holds astern of
     /// it, and a far boat seen bow-on, placed at one range, is as compact as a marker. In
     /// follow_boat (seed 41) a 7 m/s target mapped 13 m long and 4 m high, was voted extended
-    /// within 2 s of birth, and the follow step, which takes a boat, never took it; on
-    /// cluttered_river, mapped to 100 m, a boat coming head-on at 6 m/s was voted a marker, which
-    /// the sequencer does not predict along its velocity, and passed 1.65 m from the own boat.
+    /// within 2 s of birth, and the follow step, which takes a boat, never took it. The sequencer
+    /// does not predict a marker along its velocity (ARCHITECTURE.md, mapping range: a boat voted
+    /// a marker before it had the hits this rule asks passed 1.65 m from the own boat).
     fn class(&self) -> (u8, f32) {
         let total: f32 = self.class_score.iter().sum();
         let (k, v) = self

@@ -412,6 +412,23 @@ fn config_to_100_m() -> HazardConfig {
     c
 }
 
+/// A 640x480 view north from the origin of one boat-sized cylinder (5 m wide, 2 m high) `north`
+/// metres out, with the disparity noise (+-0.4 px) that smears it over metres of range far out.
+fn far_boat_frame(north: f64) -> (Cylinder, DisparityHeader, Vec<f32>) {
+    let mut s = Scene::hammerhead(640, 480);
+    s.noise_px = 0.4;
+    let boat = Cylinder {
+        east: 0.0,
+        north,
+        radius: 2.5,
+        height: 2.0,
+    };
+    s.objects.push(boat);
+    let mut d = Vec::new();
+    s.render(&mut d);
+    (boat, s.header(1_000_000_000, "hh_left"), d)
+}
+
 /// Ranges (m from the camera) of the cells with elevated points within `radius` of (east, north).
 fn elevated_ranges(out: &[MapCell], g: &GridGeometry, target: [f64; 2], radius: f64) -> Vec<f64> {
     let mut ranges = Vec::new();
@@ -432,20 +449,8 @@ fn elevated_ranges(out: &[MapCell], g: &GridGeometry, target: [f64; 2], radius: 
 
 #[test]
 fn a_far_boat_is_placed_at_its_median_range_not_smeared_along_it() {
-    // A boat-sized cylinder 90 m ahead (the camera looks north from the origin), with the
-    // disparity noise that spreads its pixels over +-6 m of range there.
-    let mut s = Scene::hammerhead(640, 480);
-    s.noise_px = 0.4;
-    let boat = Cylinder {
-        east: 0.0,
-        north: 90.0,
-        radius: 2.5,
-        height: 2.0,
-    };
-    s.objects.push(boat);
-    let mut d = Vec::new();
-    s.render(&mut d);
-    let h = s.header(1_000_000_000, "hh_left");
+    // 90 m ahead, where the noise spreads its pixels over +-6 m of range.
+    let (boat, h, d) = far_boat_frame(90.0);
     let mut far = config_to_100_m();
     let (ahead, search) = ([boat.east, boat.north], 15.0);
 
@@ -483,17 +488,7 @@ fn a_far_boat_is_placed_at_its_median_range_not_smeared_along_it() {
 fn a_boat_beyond_the_range_limit_stays_out_of_the_map() {
     // 105 m out, past the 100 m limit: its segment's median range is beyond it, so none of its
     // pixels (some of which read nearer than 100 m) is mapped.
-    let mut s = Scene::hammerhead(640, 480);
-    s.noise_px = 0.4;
-    s.objects.push(Cylinder {
-        east: 0.0,
-        north: 105.0,
-        radius: 2.5,
-        height: 2.0,
-    });
-    let mut d = Vec::new();
-    s.render(&mut d);
-    let h = s.header(1_000_000_000, "hh_left");
+    let (_, h, d) = far_boat_frame(105.0);
     let mut far = config_to_100_m();
     let smeared = map(
         &mut HazardMapper::new(far.clone(), model()).unwrap(),
