@@ -95,6 +95,21 @@ pub struct ArcConfig {
     /// 4.5 m/s, blocked every arc 8 m off the bow (a marker is judged where it is, not moved): the
     /// boat braked and turned away and fell 19 m behind its target.
     pub marker_max_speed_mps: f64,
+    /// Not following a target, a confirmed "channel marker" or extended contact no larger than
+    /// `contact_max_extent_m` that moves at `fast_contact_min_speed_mps` or more and, both holding
+    /// course, would pass within this (m) of the own boat blocks the arcs that would meet it
+    /// where it will be, like a boat, instead of being left to the map (0: never). A boat seen
+    /// bow-on far out is as compact as a marker and its wake as long as a bank piece: in
+    /// cluttered_river's log an oncoming boat at 6 m/s was a "marker" 65-43 m out and "extended" to
+    /// 32 m, so no arc knew its lane; the own boat turned across it toward its waypoint and passed
+    /// 1.65 m from its hull. The glint this keeps out drifts near a followed target's wake, or
+    /// along a bank: there a 5 m "extended" piece drifting at 4 m/s, 31 m from passing, blocked
+    /// the arcs away from the bank and held the boat creeping for 20 s.
+    pub fast_contact_cpa_m: f64,
+    /// See `fast_contact_cpa_m`. 3 m/s, the speed from which the tracker calls a compact track
+    /// that keeps moving a boat: on bridge_pylons a "marker" of glint 45 m dead ahead, drifting
+    /// toward the own boat at 2.1-2.2 m/s, swerved it at 2 m/s.
+    pub fast_contact_min_speed_mps: f64,
     /// While following, map hazards within `followed_exempt_m / 2` of the last this many metres
     /// of the target's path ([`crate::wake::WakeTrail`]) are its wake and the cells its hull left:
     /// the map's 3-observation average and hazard decay hold them a second or more, and the wake
@@ -138,6 +153,8 @@ impl Default for ArcConfig {
             late_birth_m: 20.0,
             late_birth_min_age_s: 3.0,
             marker_max_speed_mps: 2.0,
+            fast_contact_cpa_m: 20.0,
+            fast_contact_min_speed_mps: 3.0,
             followed_wake_map_m: 20.0,
             young_coasting_max_age_s: 6.0,
         }
@@ -187,6 +204,11 @@ impl ArcConfig {
             ("late_birth_m", self.late_birth_m),
             ("late_birth_min_age_s", self.late_birth_min_age_s),
             ("marker_max_speed_mps", self.marker_max_speed_mps),
+            ("fast_contact_cpa_m", self.fast_contact_cpa_m),
+            (
+                "fast_contact_min_speed_mps",
+                self.fast_contact_min_speed_mps,
+            ),
             ("followed_wake_map_m", self.followed_wake_map_m),
             ("young_coasting_max_age_s", self.young_coasting_max_age_s),
         ] {

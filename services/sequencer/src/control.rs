@@ -195,6 +195,11 @@ pub struct Guidance {
     /// Whether the speed loop may brake astern on a free arc when the boat is well above
     /// `speed_mps`. Following, only close to the target (`follow_brake_range_m`).
     pub may_brake: bool,
+    /// The heading is the direction of an arc the boat runs slowly because every arc is blocked
+    /// further out: the error is the turn itself, not a wrong way, and does not cut the speed. Cut
+    /// to 1 m/s for a hard turn (`cos` of the arc's 57 deg), a boat that braked facing a bank
+    /// took 20 s to come round on cluttered_river: rudder authority goes with speed.
+    pub along_arc: bool,
 }
 
 /// The own boat as the controller sees it.
@@ -239,6 +244,7 @@ pub fn to_point(
         goal,
         range_m: range,
         may_brake: true,
+        along_arc: false,
     }
 }
 
@@ -310,6 +316,7 @@ pub fn follow(
         goal,
         range_m: range,
         may_brake: target_range < cfg.follow_brake_range_m,
+        along_arc: false,
     }
 }
 
@@ -353,7 +360,11 @@ impl Controller {
         // The set point moves slowly compared with the boat: the error rate is minus the yaw rate.
         let rudder = self.heading.step(&hg, err, -own.yaw_rate, dt);
         // Do not race off while pointing the wrong way.
-        let speed = g.speed_mps * err.cos().clamp(0.2, 1.0);
+        let speed = if g.along_arc {
+            g.speed_mps
+        } else {
+            g.speed_mps * err.cos().clamp(0.2, 1.0)
+        };
         let feed_forward = cfg.throttle_for_speed(speed);
         let mut throttle = feed_forward + self.speed.step(&sg, speed - own.speed_mps, 0.0, dt);
         if g.speed_mps <= 0.0 {
@@ -474,6 +485,7 @@ mod tests {
             goal: [-100.0, 0.0],
             range_m: 100.0,
             may_brake: true,
+            along_arc: false,
         };
         let dt = 0.1;
         let (mut prev_r, mut prev_t) = (0.0, 0.0);
@@ -571,5 +583,37 @@ mod tests {
             "speed matched: {}",
             boat.state.speed_mps
         );
+    }
+
+    #[test]
+    fn running_a_hard_arc_slowly_the_turn_does_not_cut_the_speed() {
+        // Braked to 0.5 m/s facing a bank, every arc blocked beyond 15 m: the boat runs the hard
+        // port arc (its end 57 deg off the bow) at 2 m/s. Steering "along the arc" every cycle
+        // keeps the error at 57 deg; cut for it, the speed and with it the turn rate stay low.
+        let cfg = ControlConfig::default();
+        let turned_in = |along_arc: bool| {
+            let mut c = Controller::default();
+            let mut boat = KinematicBoat::new([0.0, 0.0], 0.0, cfg.max_speed_mps);
+            boat.state.speed_mps = 0.5;
+            let dt = 0.1;
+            for _ in 0..80 {
+                let g = Guidance {
+                    heading: boat.state.yaw + 1.0,
+                    speed_mps: 2.0,
+                    goal: [0.0, 100.0],
+                    range_m: 100.0,
+                    may_brake: true,
+                    along_arc,
+                };
+                let (r, th) = c.step(&cfg, &boat.state, &g, dt);
+                boat.step(r, th, dt);
+            }
+            (boat.state.yaw, boat.state.speed_mps)
+        };
+        let (yaw_cut, speed_cut) = turned_in(false);
+        let (yaw, speed) = turned_in(true);
+        assert!(speed > speed_cut + 0.3, "{speed} vs {speed_cut} m/s");
+        assert!(yaw > yaw_cut * 1.2, "turned {yaw} vs {yaw_cut} rad in 8 s");
+        assert!(speed < 2.5, "still slow: {speed} m/s");
     }
 }

@@ -11,8 +11,8 @@ use crate::mission::{Directive, Mission, MissionError, Runner, World};
 use crate::wake::{Band, WakeTrail};
 use crate::watchdog::{self, Watchdog, WatchdogConfig};
 use messages::{
-    command_mode, contact_class, mission_action, ActuatorCommand, ContactList, FixedStr, Header,
-    InsState, MapCell, MissionReply, SequencerStatus, WorldMapHeader,
+    command_mode, contact_class, mission_action, ActuatorCommand, Contact, ContactList, FixedStr,
+    Header, InsState, MapCell, MissionReply, SequencerStatus, WorldMapHeader,
 };
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -406,8 +406,11 @@ impl Sequencer {
     /// the 10-20 m patches of wave glint that live a few seconds, drift at 2-6 m/s and never reach
     /// the map's arc threshold (follow_boat's log: as contacts they swerved the boat off the
     /// target's track). Not a young track born close in (`late_birth_m`): a ghost until it lasts.
-    /// Not a "channel marker" that drifts (`marker_max_speed_mps`): glint again. Not a young
-    /// track that lost its detection (`young_coasting_max_age_s`): glint once more.
+    /// Not a "channel marker" that drifts (`marker_max_speed_mps`): glint again, unless, not
+    /// following, it or an extended contact moves like a boat on a course passing near the own
+    /// boat (`fast_contact_min_speed_mps`, `fast_contact_cpa_m`): then it may be a boat seen bow-on
+    /// and blocks where it will be. Not a young track that lost its detection
+    /// (`young_coasting_max_age_s`): glint once more.
     fn blocked_by_contacts(
         &mut self,
         target: Option<FollowedTarget>,
@@ -421,6 +424,27 @@ impl Sequencer {
         let moving = &mut self.moving;
         let cfg = arcs.config();
         let age = now.saturating_sub(contacts.hdr.stamp_ns) as f64 * 1e-9;
+        // A fast marker or extended contact, not following, on (near) a collision course: a boat
+        // seen bow-on or along its wake.
+        let own_velocity = [own.speed_mps * own.yaw.cos(), own.speed_mps * own.yaw.sin()];
+        let horizon_s = cfg.length_m / own.speed_mps.max(1.0);
+        let fast_in_transit = |c: &Contact| {
+            target.is_none()
+                && (c.class == contact_class::CHANNEL_MARKER || c.class == contact_class::EXTENDED)
+                && c.velocity[0].hypot(c.velocity[1]) >= cfg.fast_contact_min_speed_mps
+                && c.age_s as f64 >= cfg.moving_min_age_s
+                && closest_approach(
+                    [
+                        c.position[0] - own.position[0],
+                        c.position[1] - own.position[1],
+                    ],
+                    [
+                        c.velocity[0] - own_velocity[0],
+                        c.velocity[1] - own_velocity[1],
+                    ],
+                    horizon_s,
+                ) < cfg.fast_contact_cpa_m
+        };
         moving.clear();
         moving.extend(
             contacts
@@ -441,10 +465,12 @@ impl Sequencer {
                                     0.5 * cfg.followed_exempt_m,
                                 )
                         })
-                        && c.class != contact_class::EXTENDED
-                        && !(c.class == contact_class::CHANNEL_MARKER
-                            && c.velocity[0].hypot(c.velocity[1]) > cfg.marker_max_speed_mps
-                            && c.age_s as f64 >= cfg.moving_min_age_s)
+                        && (fast_in_transit(c)
+                            || c.class != contact_class::EXTENDED
+                                && !(c.class == contact_class::CHANNEL_MARKER
+                                    && c.velocity[0].hypot(c.velocity[1])
+                                        > cfg.marker_max_speed_mps
+                                    && c.age_s as f64 >= cfg.moving_min_age_s))
                         && !(late_births.get(&c.id) == Some(&true)
                             && (c.age_s as f64) < cfg.late_birth_min_age_s)
                         && !(c.coasting == 1 && (c.age_s as f64) < cfg.young_coasting_max_age_s)
@@ -453,7 +479,7 @@ impl Sequencer {
                 .map(|c| {
                     let moving = c.velocity[0].hypot(c.velocity[1]) >= cfg.moving_min_speed_mps
                         && c.age_s as f64 >= cfg.moving_min_age_s
-                        && c.class != contact_class::CHANNEL_MARKER;
+                        && (c.class != contact_class::CHANNEL_MARKER || fast_in_transit(c));
                     let velocity = if moving { c.velocity } else { [0.0; 2] };
                     // Two sigma of position, capped: a loose new track must not block everything.
                     let sigma = (c.covariance[0].max(c.covariance[5]) as f64)
@@ -523,11 +549,17 @@ impl Sequencer {
             let g = Guidance {
                 heading: own.yaw + self.arcs.arcs()[arc].direction,
                 speed_mps,
+                along_arc: true,
                 ..g
             };
-            // Power down to what holds the slow speed at once; the speed loop brakes from there.
-            self.controller
-                .cap_throttle(cfg.throttle_for_speed(speed_mps));
+            // Faster, power down to what holds the slow speed at once; the speed loop brakes from
+            // there. Slower, the speed loop gives power: capped at the holding throttle (2 %), the
+            // drag, quadratic in speed, took 30 s to bring a boat braked to 0.4 m/s back up to 2,
+            // and at 0.4 m/s its rudder barely turns it.
+            if own.speed_mps > speed_mps {
+                self.controller
+                    .cap_throttle(cfg.throttle_for_speed(speed_mps));
+            }
             return (
                 command_mode::BLOCKED,
                 self.controller
@@ -553,6 +585,19 @@ impl Sequencer {
                 .apply_with_floor(cfg, away, throttle, dt, cfg.brake_throttle_pct),
         )
     }
+}
+
+/// Closest distance between two craft `relative` apart (m) closing at `relative_velocity` (m/s),
+/// within the next `horizon_s`.
+fn closest_approach(relative: [f64; 2], relative_velocity: [f64; 2], horizon_s: f64) -> f64 {
+    let speed2 = relative_velocity[0].powi(2) + relative_velocity[1].powi(2);
+    let t = if speed2 > 0.0 {
+        (-(relative[0] * relative_velocity[0] + relative[1] * relative_velocity[1]) / speed2)
+            .clamp(0.0, horizon_s)
+    } else {
+        0.0
+    };
+    (relative[0] + relative_velocity[0] * t).hypot(relative[1] + relative_velocity[1] * t)
 }
 
 /// A track this young (s) when the sequencer first meets it was born in this frame or the last.

@@ -170,6 +170,24 @@ fn every_arc_blocked_further_out_slows_along_an_arc_free_close_in() {
         cmd.throttle_pct
     );
     assert!(cmd.throttle_pct as f64 >= seq.config().control.brake_throttle_pct);
+
+    // Braked down to 0.4 m/s, still blocked further out: power to get back to 2 m/s, well above
+    // the throttle that merely holds 2 m/s, or the boat crawls and its rudder barely turns it.
+    let holding = seq.config().control.throttle_for_speed(2.0);
+    let mut cmd = cmd;
+    for k in 20..50 {
+        let t = t0 + k * 100 * MS;
+        seq.on_ins(&ins(t, 0.0, 0.4)).unwrap();
+        let (h, c) = map(t, &obstacles);
+        seq.on_map(&h, &c).unwrap();
+        cmd = seq.cycle("test").0;
+        assert_eq!(cmd.mode, command_mode::BLOCKED);
+    }
+    assert!(
+        cmd.throttle_pct as f64 > 3.0 * holding,
+        "{} % against {holding:.1} % that holds 2 m/s",
+        cmd.throttle_pct
+    );
 }
 
 #[test]
@@ -325,13 +343,15 @@ fn a_boat_about_to_cross_ahead_blocks_the_course_the_empty_map_leaves_open() {
     assert_eq!(status.blocked_arcs, [0, 0]);
     assert_eq!(status.chosen_arc as usize, straight);
 
-    // A track younger than `moving_min_age_s`, or one the classifier calls a channel marker,
-    // blocks where it is: its velocity is a few noisy updates or its blob changing shape, not
-    // motion. Far to starboard, it leaves the straight arc free.
+    // A track younger than `moving_min_age_s`, or one the classifier calls a channel marker
+    // that wobbles slower than `marker_max_speed_mps`, blocks where it is: its velocity is a few
+    // noisy updates or its blob changing shape, not motion. Far to starboard, it leaves the
+    // straight arc free.
     let mut young = crossing;
     young.contacts[0].age_s = 0.8;
     let mut marker = crossing;
     marker.contacts[0].class = contact_class::CHANNEL_MARKER;
+    marker.contacts[0].velocity = [0.0, 1.8];
     for list in [young, marker] {
         let mut seq = started(EAST);
         feed(&mut seq, 100 * MS, &[]);
@@ -365,8 +385,9 @@ fn a_buoy_the_tracker_holds_blocks_arcs_before_the_map_confirms_it() {
     assert!(!status.arc_blocked(status.chosen_arc as usize));
     assert_eq!(cmd.mode, command_mode::NAVIGATING);
 
-    // A buoy's track may wobble at 1.5 m/s; a "marker" drifting at 4.5 m/s is wave glint, left to
-    // the map.
+    // A buoy's track may wobble at 1.5 m/s and blocks where it is; a "marker" drifting at 4.5 m/s
+    // (wave glint, or in transit perhaps a boat) blocks where it will be: south of our course by
+    // the time we get there.
     for (speed, blocks) in [(1.5, true), (4.5, false)] {
         let mut moved = buoy;
         moved.contacts[0].velocity = [0.0, -speed];
@@ -390,15 +411,17 @@ fn a_buoy_the_tracker_holds_blocks_arcs_before_the_map_confirms_it() {
 }
 
 #[test]
-fn shore_sized_and_extended_contacts_are_left_to_the_map_whatever_their_velocity() {
+fn shore_sized_and_slow_extended_contacts_are_left_to_the_map() {
     // A 20 x 34 m blob of bank, "moving" at 6 m/s as it changes shape, across our course; a boat
-    // the same size; and a 10 x 8 m patch the classifier calls extended (wave glint) dead ahead.
+    // the same size; and a 10 x 8 m patch the classifier calls extended (wave glint) dead ahead,
+    // drifting slower than `marker_max_speed_mps` (faster, in transit, it may be a boat's wake:
+    // `in_transit_a_fast_marker_or_extended_track_coming_head_on_blocks_its_lane_like_a_boat`).
     let mut bank = boat_contacts(100 * MS, [25.0, -25.0], [0.0, 6.0]);
     bank.contacts[0].class = contact_class::EXTENDED;
     bank.contacts[0].extent = [20.0, 34.0, 3.0];
     let mut big_boat = bank;
     big_boat.contacts[0].class = contact_class::BOAT;
-    let mut patch = boat_contacts(100 * MS, [20.0, 0.0], [3.0, 2.0]);
+    let mut patch = boat_contacts(100 * MS, [20.0, 0.0], [1.5, 1.0]);
     patch.contacts[0].class = contact_class::EXTENDED;
     patch.contacts[0].extent = [10.0, 8.0, 2.0];
     for list in [bank, big_boat, patch] {
@@ -415,6 +438,66 @@ fn shore_sized_and_extended_contacts_are_left_to_the_map_whatever_their_velocity
     seq.on_contacts(&patch);
     let straight = seq.arcs().nearest(0.0);
     assert!(seq.cycle("test").1.arc_blocked(straight));
+}
+
+#[test]
+fn in_transit_a_fast_marker_or_extended_track_coming_head_on_blocks_its_lane_like_a_boat() {
+    // Heading east at 5 m/s; 50 m ahead and 6 m to port a compact track comes west at 6 m/s: a
+    // boat seen bow-on, which the classifier may call a channel marker or, along its wake,
+    // extended. We would meet 23 m on, 6 m apart: too close for the hull, the margin and its 3 m
+    // half-extent.
+    let mut oncoming = boat_contacts(100 * MS, [50.0, 6.0], [-6.0, 0.0]);
+    oncoming.contacts[0].extent = [5.0, 3.0, 2.0];
+    for class in [contact_class::CHANNEL_MARKER, contact_class::EXTENDED] {
+        oncoming.contacts[0].class = class;
+        let mut seq = started(EAST);
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&oncoming);
+        let (cmd, status) = seq.cycle("test");
+        let straight = seq.arcs().nearest(0.0);
+        assert!(
+            status.arc_blocked(straight),
+            "class {class}: straight arc free"
+        );
+        // Turning to port would cross its lane ahead of it; the boat turns to starboard.
+        let chosen = status.chosen_arc;
+        assert!(
+            chosen >= 0 && chosen < straight as i32,
+            "class {class}: chose arc {chosen}"
+        );
+        assert_eq!(cmd.mode, command_mode::NAVIGATING);
+
+        // Following a boat 20 m ahead, the same track is left to the map as drifting glint: near
+        // a followed target's wake, such tracks swerved the boat off its target.
+        let mut contacts = oncoming;
+        contacts.count = 2;
+        contacts.contacts[1] = Contact {
+            id: 3,
+            ..boat_contacts(100 * MS, [20.0, -6.0], [5.0, 0.0]).contacts[0]
+        };
+        let mut seq = started("[[step]]\ntype = \"follow\"\ncontact_id = 3\nastern_m = 20.0\n");
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&contacts);
+        assert_eq!(seq.cycle("test").1.blocked_arcs, [0, 0], "class {class}");
+    }
+
+    // A fast "extended" piece drifting south-west 25 m ahead and 45 m to port would pass 23 m
+    // off our course (`arcs.fast_contact_cpa_m` 20 m): glint along a bank, left to the map,
+    // though as a boat it would meet the hardest turn to port.
+    let mut drifting = boat_contacts(100 * MS, [25.0, 45.0], [-1.0, -4.0]);
+    drifting.contacts[0].class = contact_class::EXTENDED;
+    drifting.contacts[0].extent = [5.0, 3.5, 5.0];
+    let blocked_with = |cpa_m: f64| {
+        let mut cfg = Config::default();
+        cfg.arcs.fast_contact_cpa_m = cpa_m;
+        let mut seq = Sequencer::new(cfg).unwrap();
+        seq.load_mission(EAST).unwrap();
+        feed(&mut seq, 100 * MS, &[]);
+        seq.on_contacts(&drifting);
+        seq.cycle("test").1.blocked_arcs
+    };
+    assert_eq!(blocked_with(20.0), [0, 0]);
+    assert_ne!(blocked_with(30.0), [0, 0]);
 }
 
 #[test]
