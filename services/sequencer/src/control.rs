@@ -208,6 +208,7 @@ pub struct OwnState {
     pub position: [f64; 2],
     pub yaw: f64,
     pub yaw_rate: f64,
+    /// Speed over ground along the heading (m/s), negative going astern.
     pub speed_mps: f64,
 }
 

@@ -297,7 +297,11 @@ impl Sequencer {
                     position: [ins.pose.position[0], ins.pose.position[1]],
                     yaw: ins.pose.yaw,
                     yaw_rate: ins.angular_rate[2],
-                    speed_mps: ins.speed(),
+                    // Signed, along the heading: over ground a boat stopped in a current, or
+                    // going astern, still "moves", and the astern brake, which stops once the
+                    // boat is slow, backed one up at 4 m/s on cluttered_river.
+                    speed_mps: ins.velocity[0] * ins.pose.yaw.cos()
+                        + ins.velocity[1] * ins.pose.yaw.sin(),
                 };
                 let world = World {
                     own,

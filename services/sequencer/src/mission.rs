@@ -924,7 +924,7 @@ impl Runner {
                 self.cruise_speed = *speed_mps;
                 None
             }
-            StepKind::Stop {} => (own.speed_mps > STOPPED_MPS).then_some(Directive::Hold),
+            StepKind::Stop {} => (own.speed_mps.abs() > STOPPED_MPS).then_some(Directive::Hold),
             StepKind::Wait { seconds } => (elapsed < *seconds).then_some(Directive::Hold),
         }
     }

@@ -222,6 +222,16 @@ fn every_arc_blocked_close_in_brakes_and_turns_away() {
     let cmd = seq.cycle("test").0;
     assert_eq!(cmd.mode, command_mode::BLOCKED);
     assert_eq!(cmd.throttle_pct, 0.0);
+    // Carried astern at 0.8 m/s (by a current, or by the brake itself): no astern power either.
+    // Counted over ground whatever its direction, that speed kept the brake on and backed the
+    // boat up ever faster.
+    let t2 = t1 + 100 * MS;
+    seq.on_ins(&ins(t2, 0.0, -0.8)).unwrap();
+    let (h, c) = map(t2, &obstacles);
+    seq.on_map(&h, &c).unwrap();
+    let cmd = seq.cycle("test").0;
+    assert_eq!(cmd.mode, command_mode::BLOCKED);
+    assert_eq!(cmd.throttle_pct, 0.0);
 }
 
 #[test]
