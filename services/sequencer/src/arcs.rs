@@ -103,8 +103,9 @@ pub struct ArcConfig {
     /// cluttered_river's log an oncoming boat at 6 m/s was a "marker" 65-43 m out and "extended" to
     /// 32 m, so no arc knew its lane; the own boat turned across it toward its waypoint and passed
     /// 1.65 m from its hull. The glint this keeps out drifts near a followed target's wake, or
-    /// along a bank: there a 5 m "extended" piece drifting at 4 m/s, 31 m from passing, blocked
-    /// the arcs away from the bank and held the boat creeping for 20 s.
+    /// along a bank: there a 5 m "extended" piece drifting at 4 m/s would pass 31 m off (its
+    /// recorded position and velocity against a boat nearly stopped). No run measured changed
+    /// with the 20 m bar; it guards the rule against such pieces, not a diagnosed failure.
     pub fast_contact_cpa_m: f64,
     /// See `fast_contact_cpa_m`. 3 m/s, the speed from which the tracker calls a compact track
     /// that keeps moving a boat: on bridge_pylons a "marker" of glint 45 m dead ahead, drifting

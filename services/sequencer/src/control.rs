@@ -196,9 +196,10 @@ pub struct Guidance {
     /// `speed_mps`. Following, only close to the target (`follow_brake_range_m`).
     pub may_brake: bool,
     /// The heading is the direction of an arc the boat runs slowly because every arc is blocked
-    /// further out: the error is the turn itself, not a wrong way, and does not cut the speed. Cut
-    /// to 1 m/s for a hard turn (`cos` of the arc's 57 deg), a boat that braked facing a bank
-    /// took 20 s to come round on cluttered_river: rudder authority goes with speed.
+    /// further out: the error is the turn itself, not a wrong way, and does not cut the speed,
+    /// which would be 1 m/s for a hard turn (`cos` of the arc's 57 deg): rudder authority goes
+    /// with speed. On cluttered_river a boat that braked facing a bank, with this cut and the
+    /// throttle capped at what holds the slow speed, crawled at about 0.5 m/s for 22 s.
     pub along_arc: bool,
 }
 

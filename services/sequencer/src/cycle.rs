@@ -557,9 +557,9 @@ impl Sequencer {
                 ..g
             };
             // Faster, power down to what holds the slow speed at once; the speed loop brakes from
-            // there. Slower, the speed loop gives power: capped at the holding throttle (2 %), the
-            // drag, quadratic in speed, took 30 s to bring a boat braked to 0.4 m/s back up to 2,
-            // and at 0.4 m/s its rudder barely turns it.
+            // there. Slower, the speed loop gives power: capped at the holding throttle (2 %), a
+            // boat braked facing a bank crawled at about 0.5 m/s for 22 s on cluttered_river (the
+            // drag is quadratic in speed), and that slow its rudder barely turns it.
             if own.speed_mps > speed_mps {
                 self.controller
                     .cap_throttle(cfg.throttle_for_speed(speed_mps));

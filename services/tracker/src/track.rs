@@ -264,8 +264,9 @@ impl Track {
     /// it, and a far boat seen bow-on, placed at one range, is as compact as a marker. In
     /// follow_boat (seed 41) a 7 m/s target mapped 13 m long and 4 m high, was voted extended
     /// within 2 s of birth, and the follow step, which takes a boat, never took it. The sequencer
-    /// does not predict a marker along its velocity (ARCHITECTURE.md, mapping range: a boat voted
-    /// a marker before it had the hits this rule asks passed 1.65 m from the own boat).
+    /// predicts a marker along its velocity only in transit and only when it is fast and closing
+    /// (ARCHITECTURE.md, mapping range: a boat voted a marker before it had the hits this rule
+    /// asks passed 1.65 m from the own boat).
     fn class(&self) -> (u8, f32) {
         let total: f32 = self.class_score.iter().sum();
         let (k, v) = self

@@ -42,6 +42,13 @@ fn vessel_of(h: &DisparityHeader) -> Pose {
     }
 }
 
+/// The scene's disparity as `hh_left` sees it at 1 s.
+fn rendered(s: &Scene) -> (DisparityHeader, Vec<f32>) {
+    let mut d = Vec::new();
+    s.render(&mut d);
+    (s.header(1_000_000_000, "hh_left"), d)
+}
+
 fn map(mapper: &mut HazardMapper, h: &DisparityHeader, d: &[f32]) -> (Vec<MapCell>, FrameSummary) {
     let mut out = vec![
         MapCell::default();
@@ -92,9 +99,7 @@ fn a_buoy_lands_in_its_cell_at_its_height() {
         radius: 0.4,
         height: 1.6,
     });
-    let mut d = Vec::new();
-    s.render(&mut d);
-    let h = s.header(1_000_000_000, "hh_left");
+    let (h, d) = rendered(&s);
     let mut mapper = HazardMapper::new(config(), model()).unwrap();
     let (out, summary) = map(&mut mapper, &h, &d);
     assert_eq!(summary.attitude, AttitudeSource::WaterPlane);
@@ -118,9 +123,7 @@ fn a_buoy_lands_in_its_cell_at_its_height() {
 #[test]
 fn flat_water_gives_no_hazard_and_unknown_elsewhere() {
     let s = Scene::hammerhead(640, 480);
-    let mut d = Vec::new();
-    s.render(&mut d);
-    let h = s.header(1_000_000_000, "hh_left");
+    let (h, d) = rendered(&s);
     let mut mapper = HazardMapper::new(config(), model()).unwrap();
     let (out, summary) = map(&mut mapper, &h, &d);
     assert!(summary.observed_cells > 1000, "{summary:?}");
@@ -424,9 +427,8 @@ fn far_boat_frame(north: f64) -> (Cylinder, DisparityHeader, Vec<f32>) {
         height: 2.0,
     };
     s.objects.push(boat);
-    let mut d = Vec::new();
-    s.render(&mut d);
-    (boat, s.header(1_000_000_000, "hh_left"), d)
+    let (h, d) = rendered(&s);
+    (boat, h, d)
 }
 
 /// Ranges (m from the camera) of the cells with elevated points within `radius` of (east, north).
@@ -506,9 +508,7 @@ fn a_boat_beyond_the_range_limit_stays_out_of_the_map() {
 fn far_segments_put_a_row_of_far_buoys_nearer_where_they_are() {
     // The benchmark's buoys, 15-92 m out, on the sets' 640x480 heads.
     let s = Scene::buoy_row(640, 480);
-    let mut d = Vec::new();
-    s.render(&mut d);
-    let h = s.header(1_000_000_000, "hh_left");
+    let (h, d) = rendered(&s);
     let mut far = config_to_100_m();
     // Distance (m) of the highest cell within 3 m from each buoy 55 m or more out.
     let offsets = |cfg: HazardConfig| -> Vec<f64> {
