@@ -111,6 +111,20 @@ pub struct ArcConfig {
     /// that keeps moving a boat: on bridge_pylons a "marker" of glint 45 m dead ahead, drifting
     /// toward the own boat at 2.1-2.2 m/s, swerved it at 2 m/s.
     pub fast_contact_min_speed_mps: f64,
+    /// In transit, a boat (or a track the rule above takes for one) met head-on makes the boat
+    /// keep to starboard and pass port to port, as the collision regulations ask of both craft:
+    /// moving at `fast_contact_min_speed_mps` or more on a course within this (deg) of our
+    /// reciprocal, at most `head_on_range_m` ahead, passing within `fast_contact_cpa_m` if both
+    /// held course. While it lasts no arc turning to port is taken unless every other one is
+    /// blocked close in (0: never). On cluttered_river the boat, its waypoint beyond a bend to
+    /// port, turned across the lane of a boat coming down the channel 50 m ahead (1.65 m and
+    /// 4.8 m passes on two builds).
+    pub head_on_max_course_deg: f64,
+    /// See `head_on_max_course_deg`.
+    pub head_on_range_m: f64,
+    /// A track this old (s) or older may be met head-on: younger than `moving_min_age_s`, as a
+    /// boat closing at 13 m/s covers 26 m in those 2 s, and the rule only narrows the arcs.
+    pub head_on_min_age_s: f64,
     /// While following, map hazards within `followed_exempt_m / 2` of the last this many metres
     /// of the target's path ([`crate::wake::WakeTrail`]) are its wake and the cells its hull left:
     /// the map's 3-observation average and hazard decay hold them a second or more, and the wake
@@ -156,6 +170,9 @@ impl Default for ArcConfig {
             marker_max_speed_mps: 2.0,
             fast_contact_cpa_m: 20.0,
             fast_contact_min_speed_mps: 3.0,
+            head_on_max_course_deg: 30.0,
+            head_on_range_m: 80.0,
+            head_on_min_age_s: 1.0,
             followed_wake_map_m: 20.0,
             young_coasting_max_age_s: 6.0,
         }
@@ -210,6 +227,9 @@ impl ArcConfig {
                 "fast_contact_min_speed_mps",
                 self.fast_contact_min_speed_mps,
             ),
+            ("head_on_max_course_deg", self.head_on_max_course_deg),
+            ("head_on_range_m", self.head_on_range_m),
+            ("head_on_min_age_s", self.head_on_min_age_s),
             ("followed_wake_map_m", self.followed_wake_map_m),
             ("young_coasting_max_age_s", self.young_coasting_max_age_s),
         ] {
@@ -274,6 +294,8 @@ pub struct Blocked {
     /// Hazards blocking an arc within `near_m`, to port (y > 0) and to starboard.
     pub port: u32,
     pub starboard: u32,
+    /// A boat meets us head-on: keep to starboard (see [`ArcConfig::head_on_max_course_deg`]).
+    pub keep_starboard: bool,
 }
 
 impl Blocked {
@@ -284,6 +306,7 @@ impl Blocked {
         self.near |= other.near;
         self.port += other.port;
         self.starboard += other.starboard;
+        self.keep_starboard |= other.keep_starboard;
     }
 }
 
@@ -481,6 +504,15 @@ impl ArcSet {
                 d(a).total_cmp(&d(b))
             })
             .unwrap_or(0)
+    }
+
+    /// The arcs that turn to port (direction left of straight ahead).
+    pub fn to_port(&self) -> u128 {
+        self.arcs
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.direction > 0.0)
+            .fold(0, |mask, (i, _)| mask | 1 << i)
     }
 
     /// Mask with one bit per arc.

@@ -103,6 +103,8 @@ pub struct Sequencer {
     moving: Vec<MovingObstacle>,
     /// Per contact id: whether its track was born within `arcs.late_birth_m` of the vessel.
     late_births: HashMap<u32, bool>,
+    /// Boats met head-on (contact ids), kept until they are abeam or the range opens.
+    head_on: Vec<u32>,
     /// Where the followed target went: its wake, which blocks no arc.
     wake_trail: WakeTrail,
     watchdog: Watchdog,
@@ -125,6 +127,7 @@ impl Sequencer {
             contacts: Box::default(),
             moving: Vec::new(),
             late_births: HashMap::new(),
+            head_on: Vec::new(),
             wake_trail: WakeTrail::default(),
             watchdog: Watchdog::new(&cfg.watchdog),
             runner: Runner::new(cfg.control.max_speed_mps),
@@ -341,6 +344,7 @@ impl Sequencer {
                     exempt,
                 );
                 blocked.merge(self.blocked_by_contacts(target, &own, now));
+                blocked.keep_starboard = self.meets_head_on(target, &own);
                 // Close behind the target, arcs are judged only as far as the follow look-ahead
                 // (see `ArcConfig::followed_lookahead_m`); the status reports what was judged.
                 if target.is_some_and(|t| {
@@ -430,24 +434,11 @@ impl Sequencer {
         let age = now.saturating_sub(contacts.hdr.stamp_ns) as f64 * 1e-9;
         // A fast marker or extended contact, not following, on (near) a collision course: a boat
         // seen bow-on or along its wake.
-        let own_velocity = [own.speed_mps * own.yaw.cos(), own.speed_mps * own.yaw.sin()];
-        let horizon_s = cfg.length_m / own.speed_mps.max(1.0);
         let fast_in_transit = |c: &Contact| {
             target.is_none()
                 && (c.class == contact_class::CHANNEL_MARKER || c.class == contact_class::EXTENDED)
-                && c.velocity[0].hypot(c.velocity[1]) >= cfg.fast_contact_min_speed_mps
-                && c.age_s as f64 >= cfg.moving_min_age_s
-                && closest_approach(
-                    [
-                        c.position[0] - own.position[0],
-                        c.position[1] - own.position[1],
-                    ],
-                    [
-                        c.velocity[0] - own_velocity[0],
-                        c.velocity[1] - own_velocity[1],
-                    ],
-                    horizon_s,
-                ) < cfg.fast_contact_cpa_m
+                && moves_like_a_boat(c, cfg)
+                && closest_approach(c, own, cfg.length_m) < cfg.fast_contact_cpa_m
         };
         moving.clear();
         moving.extend(
@@ -503,6 +494,55 @@ impl Sequencer {
         arcs.blocked_by_moving(moving, own.position, own.yaw, own.speed_mps)
     }
 
+    /// Whether, in transit, a boat meets us head-on (`arcs.head_on_max_course_deg`): a confirmed
+    /// boat, or a compact marker or extended track moving like one, on a course near our
+    /// reciprocal, ahead within `head_on_range_m` and closing to within `fast_contact_cpa_m`. A boat
+    /// once met stays met until it is abeam or the range opens: turning to starboard opens the
+    /// closest approach, and dropping the rule then would turn us back across its bow.
+    fn meets_head_on(&mut self, target: Option<FollowedTarget>, own: &OwnState) -> bool {
+        let cfg = self.arcs.config();
+        if target.is_some() || cfg.head_on_max_course_deg <= 0.0 {
+            self.head_on.clear();
+            return false;
+        }
+        let contacts = self.contacts.as_slice();
+        self.head_on.retain(|&id| {
+            contacts
+                .iter()
+                .any(|c| c.id == id && c.confirmed == 1 && ahead_and_closing(c, own))
+        });
+        let max_course = cfg.head_on_max_course_deg.to_radians();
+        for c in contacts {
+            let candidate = c.confirmed == 1
+                && matches!(
+                    c.class,
+                    contact_class::BOAT | contact_class::CHANNEL_MARKER | contact_class::EXTENDED
+                )
+                && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
+                && c.velocity[0].hypot(c.velocity[1]) >= cfg.fast_contact_min_speed_mps
+                && c.age_s as f64 >= cfg.head_on_min_age_s
+                && !self.head_on.contains(&c.id);
+            if !candidate {
+                continue;
+            }
+            let course = c.velocity[1].atan2(c.velocity[0]);
+            let range = (c.position[0] - own.position[0]).hypot(c.position[1] - own.position[1]);
+            if angle_diff(course, own.yaw + std::f64::consts::PI).abs() <= max_course
+                && range <= cfg.head_on_range_m
+                && ahead_and_closing(c, own)
+                && closest_approach(c, own, cfg.length_m) < cfg.fast_contact_cpa_m
+            {
+                tracing::info!(
+                    contact = c.id,
+                    range_m = range,
+                    "a boat meets us head-on: keeping to starboard"
+                );
+                self.head_on.push(c.id);
+            }
+        }
+        !self.head_on.is_empty()
+    }
+
     /// Avoidance on top of the behaviour's guidance: the free arc closest to the desired course.
     /// With every arc blocked somewhere, slow down along the arc that is free close in and closest to
     /// the course; with none free close in, brake and turn away from the side with more obstacles.
@@ -521,6 +561,16 @@ impl Sequencer {
                 command_mode::NAVIGATING,
                 self.controller.step(cfg, own, &g, dt),
             );
+        }
+        let mut blocked = blocked;
+        if blocked.keep_starboard {
+            // No turn to port across the bow of a boat met head-on: such arcs count as blocked,
+            // close in too unless that leaves no arc at all (then braking would be worse).
+            let port = self.arcs.to_port();
+            blocked.mask |= port;
+            if (blocked.near | port) & self.arcs.all() != self.arcs.all() {
+                blocked.near |= port;
+            }
         }
         let bearing = angle_diff(g.heading, own.yaw);
         if let Some(arc) = self.chooser.choose(&self.arcs, blocked.mask, bearing) {
@@ -591,17 +641,45 @@ impl Sequencer {
     }
 }
 
-/// Closest distance between two craft `relative` apart (m) closing at `relative_velocity` (m/s),
-/// within the next `horizon_s`.
-fn closest_approach(relative: [f64; 2], relative_velocity: [f64; 2], horizon_s: f64) -> f64 {
-    let speed2 = relative_velocity[0].powi(2) + relative_velocity[1].powi(2);
+/// A track old enough that its velocity means something, moving as fast as a boat under way
+/// (`arcs.moving_min_age_s`, `arcs.fast_contact_min_speed_mps`).
+fn moves_like_a_boat(c: &Contact, cfg: &ArcConfig) -> bool {
+    c.velocity[0].hypot(c.velocity[1]) >= cfg.fast_contact_min_speed_mps
+        && c.age_s as f64 >= cfg.moving_min_age_s
+}
+
+/// The contact's position and velocity relative to the own boat, which holds its course.
+fn relative_motion(c: &Contact, own: &OwnState) -> ([f64; 2], [f64; 2]) {
+    (
+        [
+            c.position[0] - own.position[0],
+            c.position[1] - own.position[1],
+        ],
+        [
+            c.velocity[0] - own.speed_mps * own.yaw.cos(),
+            c.velocity[1] - own.speed_mps * own.yaw.sin(),
+        ],
+    )
+}
+
+/// Whether the contact lies ahead of the bow (forward of abeam) and the range closes.
+fn ahead_and_closing(c: &Contact, own: &OwnState) -> bool {
+    let (p, v) = relative_motion(c, own);
+    p[0] * own.yaw.cos() + p[1] * own.yaw.sin() > 0.0 && p[0] * v[0] + p[1] * v[1] < 0.0
+}
+
+/// Closest distance (m) between the contact and the own boat, both holding course, within the
+/// time the own boat takes to run `length_m` (at 1 m/s or more).
+fn closest_approach(c: &Contact, own: &OwnState, length_m: f64) -> f64 {
+    let (p, v) = relative_motion(c, own);
+    let horizon_s = length_m / own.speed_mps.max(1.0);
+    let speed2 = v[0].powi(2) + v[1].powi(2);
     let t = if speed2 > 0.0 {
-        (-(relative[0] * relative_velocity[0] + relative[1] * relative_velocity[1]) / speed2)
-            .clamp(0.0, horizon_s)
+        (-(p[0] * v[0] + p[1] * v[1]) / speed2).clamp(0.0, horizon_s)
     } else {
         0.0
     };
-    (relative[0] + relative_velocity[0] * t).hypot(relative[1] + relative_velocity[1] * t)
+    (p[0] + v[0] * t).hypot(p[1] + v[1] * t)
 }
 
 /// A track this young (s) when the sequencer first meets it was born in this frame or the last.

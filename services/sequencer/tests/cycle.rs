@@ -511,6 +511,58 @@ fn in_transit_a_fast_marker_or_extended_track_coming_head_on_blocks_its_lane_lik
 }
 
 #[test]
+fn a_boat_met_head_on_is_passed_port_to_port_even_with_the_waypoint_to_port() {
+    // Heading east at 5 m/s toward a waypoint 22 deg to port, beyond a bend; 70 m ahead and 8 m
+    // to port a boat comes west at 6 m/s, down our lane: we would meet 32 m on, 8 m apart.
+    const NORTH_EAST: &str =
+        "[[step]]\ntype = \"goto\"\nwaypoints = [[300.0, 120.0]]\nspeed_mps = 5.0\n";
+    let boat = boat_contacts(100 * MS, [70.0, 8.0], [-6.0, 0.0]);
+    let direction = |seq: &Sequencer, arc: i32| seq.arcs().arcs()[arc as usize].direction;
+    let run =
+        |head_on_max_course_deg: f64, yaw: f64, contacts: &ContactList, seq: Option<Sequencer>| {
+            let mut seq = seq.unwrap_or_else(|| {
+                let mut cfg = Config::default();
+                cfg.arcs.head_on_max_course_deg = head_on_max_course_deg;
+                let mut seq = Sequencer::new(cfg).unwrap();
+                seq.load_mission(NORTH_EAST).unwrap();
+                seq
+            });
+            let t = contacts.hdr.stamp_ns;
+            seq.on_ins(&ins(t, yaw, 5.0)).unwrap();
+            let (h, c) = map(t, &[]);
+            seq.on_map(&h, &c).unwrap();
+            seq.on_contacts(contacts);
+            let (cmd, status) = seq.cycle("test");
+            assert_eq!(cmd.mode, command_mode::NAVIGATING);
+            (seq, status.chosen_arc)
+        };
+
+    // Without the rule the boat turns to port, toward the waypoint and across the boat's bow.
+    let (seq, arc) = run(0.0, 0.0, &boat, None);
+    assert!(direction(&seq, arc) > 0.0, "arc {arc} without the rule");
+    // With it (30 deg), to starboard.
+    let (seq, arc) = run(30.0, 0.0, &boat, None);
+    assert!(direction(&seq, arc) <= 0.0, "arc {arc} with the rule");
+
+    // Turned 40 deg to starboard, the boat would pass 28 m off, on a course 40 deg off our
+    // reciprocal: not head-on if met now, but the boat already met stays met, so we do not turn
+    // back across its bow ...
+    let later = |position: [f64; 2]| boat_contacts(200 * MS, position, [-6.0, 0.0]);
+    let yaw = -40f64.to_radians();
+    let (_, arc) = run(30.0, yaw, &later([64.0, 8.0]), None);
+    let fresh = arc;
+    let (seq, arc) = run(30.0, yaw, &later([64.0, 8.0]), Some(seq));
+    assert!(
+        direction(&seq, fresh) > 0.0,
+        "arc {fresh} when first met turned away"
+    );
+    assert!(direction(&seq, arc) <= 0.0, "arc {arc} after meeting it");
+    // ... until it is abeam: then the course turns back toward the waypoint.
+    let (seq, arc) = run(30.0, yaw, &later([-5.0, 8.0]), Some(seq));
+    assert!(direction(&seq, arc) > 0.0, "arc {arc} with the boat abeam");
+}
+
+#[test]
 fn close_behind_a_followed_boat_only_the_water_up_to_the_look_ahead_is_judged() {
     // Following boat #3 heading east at 5 m/s, 20 m ahead. A hazard cell dead ahead 37 m out and a
     // boat-class contact 38 m out beside the target's track: beyond the follow look-ahead (25 m,
