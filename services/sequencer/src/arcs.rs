@@ -643,7 +643,10 @@ impl ArcSet {
     /// Arcs a moving contact blocks: running along the arc at `speed_mps` from `vessel` (heading
     /// `yaw`), the boat would come within half its width plus the safety margin, the contact's
     /// radius and [`ArcConfig::moving_margin_m`] of where the contact will be at that same moment. The map only
-    /// knows where a boat is now; this is where it will be when the boat gets there.
+    /// knows where a boat is now; this is where it will be when the boat gets there. A contact
+    /// already that close blocks only the arcs that bring it closer still: on cluttered_river the
+    /// held track of a boat just passed, 6 m off the quarter and drifting astern, blocked every
+    /// arc at its start and kept the boat braked beside it for 6 s.
     pub fn blocked_by_moving(
         &self,
         obstacles: &[MovingObstacle],
@@ -659,6 +662,7 @@ impl ArcSet {
         for o in obstacles {
             let p0 = to_body([o.position[0] - vessel[0], o.position[1] - vessel[1]]);
             let v = to_body(o.velocity);
+            let now2 = p0[0] * p0[0] + p0[1] * p0[1];
             let mut near_hit = false;
             for (a, arc) in self.arcs.iter().enumerate() {
                 // One sample per metre of arc: a contact moves < 1 m per sample at the speeds the
@@ -675,7 +679,8 @@ impl ArcSet {
                         + self.cfg.safety_margin_m
                         + o.radius_m
                         + self.cfg.moving_margin_m;
-                    (dx * dx + dy * dy < clear * clear).then_some(s)
+                    let d2 = dx * dx + dy * dy;
+                    (d2 < clear * clear && d2 < now2).then_some(s)
                 });
                 if let Some(s) = first_conflict {
                     out.mask |= 1u128 << a;
@@ -1135,6 +1140,34 @@ mod tests {
         let b = set.blocked_by_moving(&[close], [0.0, 0.0], yaw, 5.0);
         assert_ne!(b.near & (1 << straight), 0);
         assert_eq!((b.port, b.starboard), (0, 1));
+    }
+
+    #[test]
+    fn a_contact_already_close_blocks_only_the_arcs_that_bring_it_closer() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        let straight = set.nearest(0.0);
+        // Nearly stopped, heading east; a boat's held track 6.6 m off the port quarter (inside
+        // the ~10 m clearance of a 5 m radius) drifting astern and to starboard at 3.4 m/s: the
+        // arcs ahead only open the range.
+        let quarter = MovingObstacle {
+            position: [-5.6, 3.5],
+            velocity: [-1.7, -2.9],
+            radius_m: 5.2,
+        };
+        let b = set.blocked_by_moving(&[quarter], [0.0, 0.0], 0.0, 0.5);
+        assert_eq!(b.near & (1 << straight), 0, "straight arc blocked close in");
+        assert_ne!(b.near, set.all());
+        // The same track 6 m dead ahead coming at us blocks the straight arc close in, and
+        // standing still there it still does.
+        for velocity in [[-2.0, 0.0], [0.0, 0.0]] {
+            let ahead = MovingObstacle {
+                position: [6.0, 0.0],
+                velocity,
+                radius_m: 5.2,
+            };
+            let b = set.blocked_by_moving(&[ahead], [0.0, 0.0], 0.0, 0.5);
+            assert_ne!(b.near & (1 << straight), 0, "velocity {velocity:?}");
+        }
     }
 
     #[test]
