@@ -56,10 +56,6 @@ pub struct Detection {
     /// Cells at the detection threshold that were observed in this very map: evidence of now,
     /// while a cell the map holds from older observations alone may be a mismatch frames old.
     pub observed_cells: u32,
-    /// Cells observed in this very map at any hazard: 0 for a component the map holds from older
-    /// observations alone, such as the hull of a boat that has left the heads' view, which fades
-    /// over a second or two where the boat was.
-    pub seen_cells: u32,
 }
 
 /// What a cell inside a guide window needs to join a component (see [`Detector::guide`]).
@@ -245,7 +241,7 @@ impl Detector {
             let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
             let (mut hmax, mut peak) = (i16::MIN, 0u8);
             let (mut fresh_n, mut fresh_x, mut fresh_y) = (0u32, 0f64, 0f64);
-            let (mut observed_n, mut seen_n) = (0u32, 0u32);
+            let mut observed_n = 0u32;
             while let Some(i) = self.stack.pop() {
                 let i = i as usize;
                 let (x, y) = (i % w, i / w);
@@ -266,7 +262,6 @@ impl Detector {
                 hmax = hmax.max(c.max_height_cm);
                 peak = peak.max(c.hazard);
                 observed_n += u32::from(c.observed > 0 && c.hazard >= thr);
-                seen_n += u32::from(c.observed > 0);
                 if fresh(i) {
                     fresh_n += 1;
                     fresh_x += fx;
@@ -317,7 +312,6 @@ impl Detector {
                     at(mx, my)
                 },
                 observed_cells: observed_n,
-                seen_cells: seen_n,
             });
         }
     }

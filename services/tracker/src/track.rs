@@ -591,28 +591,6 @@ impl Tracker {
         let coast_ns = |s: f64| (s * 1e9) as u64;
         let dt_ns = coast_ns(dt);
         let coverage_radius = self.cfg.coverage_radius_m;
-        // A confirmed moving track predicted out of the sensors' coverage close by takes no
-        // detection of cells the map holds from older observations alone: that is where the
-        // object was, and it moves on. On cluttered_river a boat passing abeam 11-15 m off left
-        // the heads' view, the fading smear of its hull pulled its track back and its speed fell
-        // from 6.3 to 3.1 m/s in 0.8 s; held out of view at that speed, the track sat 6-8 m off
-        // the own boat while the boat was 15 m away (replayed with this rule it keeps the
-        // 4.3 m/s the partial detections at the edge of the view left it). A still object's
-        // smear is where it is; far out see `STALE_SMEAR_MAX_RANGE_M`. Unassigned, such a
-        // detection starts no track either.
-        for (ti, a) in assigned.iter_mut().enumerate() {
-            let Some(di) = *a else { continue };
-            let t = &self.tracks[ti];
-            if t.confirmed
-                && self.detections[di].seen_cells == 0
-                && t.x[2].hypot(t.x[3]) >= ANCHORED_MAX_SPEED_MPS
-                && (t.x[0] - own[0]).hypot(t.x[1] - own[1]) <= STALE_SMEAR_MAX_RANGE_M
-                && !observed_near(&g, cells, t.x[0], t.x[1], coverage_radius)
-            {
-                *a = None;
-                used[di] = true;
-            }
-        }
         let history_mask = window_mask(
             self.cfg
                 .confirm_window
@@ -1072,13 +1050,6 @@ fn confirm_rule(
         (cfg.confirm_hits, cfg.confirm_window)
     }
 }
-
-/// A confirmed track out of coverage this close (m) keeps its prediction rather than the smear the
-/// map holds where the object was (see `Tracker::update`): near, stereo has given it a velocity to
-/// hold. Farther out the velocity is poorer and the smear the better guess: on
-/// open_water_crossing's recorded maps the crossing boat, 65 m out, coasted instead and its
-/// growing guide window took a stray detection 6 m off (boats within 100 m 33 -> 27 frames).
-const STALE_SMEAR_MAX_RANGE_M: f64 = 40.0;
 
 /// Out of coverage, a track slower than this (m/s) is held still (see `update`).
 const ANCHORED_MAX_SPEED_MPS: f64 = 1.0;

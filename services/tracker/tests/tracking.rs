@@ -751,47 +751,6 @@ fn an_object_out_of_view_stays_a_contact_until_the_view_returns_without_it() {
 }
 
 #[test]
-fn a_boat_that_leaves_the_view_keeps_its_course_not_the_smear_the_map_still_holds() {
-    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
-    let grid = grid_100m();
-    let mut list = Box::<ContactList>::default();
-    // 5 Hz maps. A boat going south at 6 m/s 20 m west of the vessel, seen for 4 s; then the heads
-    // look east only. For the next 1.2 s the map still holds its hull where it was last seen,
-    // fading (hazard 150 -> 100), observed in none of those maps: where the boat was, not where
-    // it is.
-    let boat = |k: u64| [-20.0, 30.0 - 6.0 * 0.2 * k as f64];
-    let last_seen = 19;
-    for k in 0..35u64 {
-        let mut cells = open_water(&grid);
-        if k <= last_seen {
-            paint_hull_rim(&grid, &mut cells, boat(k), [0.0, -1.0], 150);
-        } else {
-            look_east_only(&grid, &mut cells);
-            if k <= last_seen + 6 {
-                let hazard = 150 - 8 * (k - last_seen) as u8;
-                let stale = MapCell {
-                    hazard,
-                    max_height_cm: 150,
-                    observed: 0,
-                    ..Default::default()
-                };
-                let [bx, by] = boat(last_seen);
-                paint_cells(&grid, &mut cells, stale, |[x, y]| {
-                    (x - bx).abs() <= 1.25 && (y - by).abs() <= 3.0
-                });
-            }
-        }
-        feed(&mut t, grid, k, &cells, &mut list);
-    }
-    // 3 s after it left the view the boat is 18 m farther south; its track is held on its course.
-    let now = boat(34);
-    let c = confirmed_near(&list, now, 4.0).unwrap_or_else(|| panic!("{:?}", list.as_slice()));
-    let speed = c.velocity[0].hypot(c.velocity[1]);
-    assert!((speed - 6.0).abs() < 0.6, "speed {speed}");
-    assert_eq!(c.coasting, 1);
-}
-
-#[test]
 fn a_buoy_seen_for_under_two_seconds_before_it_leaves_the_view_stays_a_contact() {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
     let grid = grid_100m();
