@@ -117,8 +117,8 @@ pub struct ArcConfig {
     /// reciprocal, at most `head_on_range_m` ahead, passing within `fast_contact_cpa_m` if both
     /// held course. While it lasts no arc turning to port is taken unless every other one is
     /// blocked close in (0: never). On cluttered_river the boat, its waypoint beyond a bend to
-    /// port, turned across the lane of a boat coming down the channel 50 m ahead (1.65 m and
-    /// 4.8 m passes on two builds).
+    /// port, turned across the lane of a boat coming down the channel 50 m ahead and passed
+    /// 4.8 m off (8.0 m with the rule).
     pub head_on_max_course_deg: f64,
     /// See `head_on_max_course_deg`.
     pub head_on_range_m: f64,
@@ -409,6 +409,8 @@ pub struct ArcSet {
     /// Largest distance from the vessel at which any corridor reaches (m).
     reach: f64,
     hazard_u8: u8,
+    /// Arcs that turn to port (see [`ArcSet::to_port`]).
+    port_mask: u128,
 }
 
 impl ArcSet {
@@ -432,6 +434,11 @@ impl ArcSet {
         let reach = cfg.length_m + corridor_half_width(cfg, resolution, cfg.length_m);
         let half = (reach / resolution).ceil() as i32 + 1;
         let side = 2 * half as usize;
+        let port_mask = arcs
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.direction > 0.0)
+            .fold(0, |mask, (i, _)| mask | 1 << i);
         let mut set = Self {
             cfg: cfg.clone(),
             arcs,
@@ -442,6 +449,7 @@ impl ArcSet {
             lut: vec![[0; 3]; side * side],
             reach,
             hazard_u8: (cfg.hazard_threshold * 255.0).ceil().clamp(0.0, 255.0) as u8,
+            port_mask,
         };
         for a in 0..set.arcs.len() {
             let arc = set.arcs[a];
@@ -508,11 +516,7 @@ impl ArcSet {
 
     /// The arcs that turn to port (direction left of straight ahead).
     pub fn to_port(&self) -> u128 {
-        self.arcs
-            .iter()
-            .enumerate()
-            .filter(|(_, a)| a.direction > 0.0)
-            .fold(0, |mask, (i, _)| mask | 1 << i)
+        self.port_mask
     }
 
     /// Mask with one bit per arc.

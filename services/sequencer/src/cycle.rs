@@ -437,7 +437,7 @@ impl Sequencer {
         let fast_in_transit = |c: &Contact| {
             target.is_none()
                 && (c.class == contact_class::CHANNEL_MARKER || c.class == contact_class::EXTENDED)
-                && moves_like_a_boat(c, cfg)
+                && moves_like_a_boat(c, cfg, cfg.moving_min_age_s)
                 && closest_approach(c, own, cfg.length_m) < cfg.fast_contact_cpa_m
         };
         moving.clear();
@@ -519,8 +519,7 @@ impl Sequencer {
                     contact_class::BOAT | contact_class::CHANNEL_MARKER | contact_class::EXTENDED
                 )
                 && c.extent[0].max(c.extent[1]) as f64 <= cfg.contact_max_extent_m
-                && c.velocity[0].hypot(c.velocity[1]) >= cfg.fast_contact_min_speed_mps
-                && c.age_s as f64 >= cfg.head_on_min_age_s
+                && moves_like_a_boat(c, cfg, cfg.head_on_min_age_s)
                 && !self.head_on.contains(&c.id);
             if !candidate {
                 continue;
@@ -641,11 +640,11 @@ impl Sequencer {
     }
 }
 
-/// A track old enough that its velocity means something, moving as fast as a boat under way
-/// (`arcs.moving_min_age_s`, `arcs.fast_contact_min_speed_mps`).
-fn moves_like_a_boat(c: &Contact, cfg: &ArcConfig) -> bool {
+/// A track at least `min_age_s` old (so that its velocity means something) moving as fast as a
+/// boat under way (`arcs.fast_contact_min_speed_mps`).
+fn moves_like_a_boat(c: &Contact, cfg: &ArcConfig, min_age_s: f64) -> bool {
     c.velocity[0].hypot(c.velocity[1]) >= cfg.fast_contact_min_speed_mps
-        && c.age_s as f64 >= cfg.moving_min_age_s
+        && c.age_s as f64 >= min_age_s
 }
 
 /// The contact's position and velocity relative to the own boat, which holds its course.
