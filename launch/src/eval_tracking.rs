@@ -4,6 +4,8 @@
 //! 3-sigma ratio. Matching and the per-instant metrics are the tracker's own (`tracker::eval`).
 //! The detection targets are also scored over the frames in which the object lay in some stereo
 //! head's field of view (Hammerhead's figures are for what the cameras see), beside all frames.
+//! A scripted object that has run aground (a constant-velocity boat that crossed the channel and
+//! sails on through the trees) is no target: its frames are counted apart and not scored.
 
 use messages::{contact_class, truth_class, CameraModel, ContactList, GroundTruth};
 use serde_json::json;
@@ -86,6 +88,8 @@ pub struct TrackingScore {
     /// The same, over the frames in which the object lay in a head's field of view.
     boats_100m_in_view: Counts,
     markers_60m_in_view: Counts,
+    /// The boats' counts by truth id (all frames, in view): which boat the misses are on.
+    boats_100m_by_object: BTreeMap<u32, (Counts, Counts)>,
     /// Horizontal field of view of each stereo head: (right edge, left edge) azimuth in the body
     /// frame (rad, counter-clockwise from forward), from the disparity images' camera models.
     views: BTreeMap<String, (f64, f64)>,
@@ -101,6 +105,8 @@ pub struct TrackingScore {
     /// classifier's "extended"), not false tracks.
     land: Option<LandTest>,
     shore_ids: BTreeSet<u32>,
+    /// Frames of scored true objects left out because they lay on land.
+    aground_frames: u64,
     speed_errors_pct: Vec<f64>,
     /// The same over the frames in which the track had a detection (not coasting).
     detected_speed_errors_pct: Vec<f64>,
@@ -163,6 +169,11 @@ impl TrackingScore {
             if !SCORED.contains(&o.class) {
                 continue;
             }
+            let [x, y, _] = o.pose.position;
+            if self.land.as_ref().is_some_and(|land| land(x, y)) {
+                self.aground_frames += 1;
+                continue;
+            }
             let range =
                 (o.pose.position[0] - own.position[0]).hypot(o.pose.position[1] - own.position[1]);
             let detected = os.track_id.is_some();
@@ -192,6 +203,13 @@ impl TrackingScore {
                 _ => None,
             };
             if let Some((all, seen)) = target {
+                all.add(detected);
+                if in_view {
+                    seen.add(detected);
+                }
+            }
+            if o.class == truth_class::BOAT && range < 100.0 {
+                let (all, seen) = self.boats_100m_by_object.entry(o.id).or_default();
                 all.add(detected);
                 if in_view {
                     seen.add(detected);
@@ -318,12 +336,16 @@ impl TrackingScore {
             "markers_within_60m": self.markers_60m.json(),
             // Null until a disparity image told the heads' fields of view.
             "boats_within_100m_in_view": (!self.views.is_empty()).then(|| self.boats_100m_in_view.json()),
+            "boats_within_100m_by_object": self.boats_100m_by_object.iter()
+                .map(|(id, (all, seen))| json!({"id": id, "all": all.json(), "in_view": seen.json()}))
+                .collect::<Vec<_>>(),
             "markers_within_60m_in_view": (!self.views.is_empty()).then(|| self.markers_60m_in_view.json()),
             "by_range_m": bins(&self.by_range, &RANGE_BINS_M, "m"),
             "by_range_lengths": bins(&self.by_lengths, &LENGTH_BINS, "object lengths"),
             "confirmed_tracks": self.lives.len(),
             "false_tracks": self.false_tracks(),
             "shore_tracks": self.land.as_ref().map(|_| self.shore_tracks()),
+            "aground_frames": self.land.as_ref().map(|_| self.aground_frames),
             "false_tracks_per_min": (scenario_minutes > 0.0)
                 .then(|| self.false_tracks() as f64 / scenario_minutes),
             "false_object_tracks": self.false_object_tracks(),
@@ -526,5 +548,44 @@ mod tests {
         assert_eq!(r["confirmed_tracks"], 3);
         assert_eq!(r["shore_tracks"], 1);
         assert_eq!(r["false_tracks"], 1);
+    }
+
+    #[test]
+    fn a_boat_that_ran_aground_is_counted_apart_not_scored() {
+        let mut s = TrackingScore::default();
+        s.on_truth(&truth(7));
+        s.on_contacts(&ContactList {
+            hdr: Header::new(0, 7, "tracker"),
+            ..Default::default()
+        });
+        let r = s.report(1.0);
+        assert_eq!(r["boats_within_100m"]["frames"], 1, "on water: a miss");
+        // Which boat the miss is on.
+        let by_object = &r["boats_within_100m_by_object"];
+        assert_eq!(by_object[0]["id"], 1);
+        assert_eq!(by_object[0]["all"]["frames"], 1);
+        assert_eq!(by_object[0]["all"]["detected"], 0);
+        // The same boat (40 m north) on land; the buoy (on the east axis) still on water.
+        let mut s = TrackingScore::default();
+        s.set_land(Box::new(|_, y| y > 20.0));
+        s.on_truth(&truth(7));
+        s.on_contacts(&ContactList {
+            hdr: Header::new(0, 7, "tracker"),
+            ..Default::default()
+        });
+        let r = s.report(1.0);
+        assert_eq!(r["boats_within_100m"]["frames"], 0);
+        assert!(r["boats_within_100m_by_object"]
+            .as_array()
+            .unwrap()
+            .is_empty());
+        let classes: Vec<_> = r["by_range_m"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|b| b["class"].as_str().unwrap())
+            .collect();
+        assert_eq!(classes, ["buoy"]);
+        assert_eq!(r["aground_frames"], 1);
     }
 }
