@@ -472,7 +472,7 @@ fn print_report(r: &serde_json::Value) {
 pub(crate) fn tracking_line(t: &serde_json::Value) -> String {
     let f = fixed2;
     format!(
-        "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min, of them reported as objects {}, {}/min; {} on the shore), moving-boat speed error p50 {} % ({} % while detected), heading error p50 {} deg, along/cross 3-sigma ratio {}; frames of objects aground, not scored: {}",
+        "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min, of them reported as objects {}, {}/min; {} on the shore), moving-boat speed error p50 {} % ({} % while detected), heading error p50 {} deg, along/cross 3-sigma ratio {}{}",
         t["boats_within_100m"]["detected"],
         t["boats_within_100m"]["frames"],
         in_view(&t["boats_within_100m_in_view"]),
@@ -489,7 +489,10 @@ pub(crate) fn tracking_line(t: &serde_json::Value) -> String {
         f(&t["moving_speed_error_pct"]["detected_p50"], 1.0),
         f(&t["moving_heading_error_deg"]["p50"], 1.0),
         f(&t["along_cross_3sigma_ratio"], 1.0),
-        t["aground_frames"],
+        match t["aground_frames"].as_u64() {
+            Some(n) if n > 0 => format!("; {n} frames of objects aground not scored"),
+            _ => String::new(),
+        },
     )
 }
 
