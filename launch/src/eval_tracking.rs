@@ -81,6 +81,8 @@ pub struct TrackingScore {
     scored_lists: u64,
     /// (class, bin) -> counts, by metres and by object lengths.
     by_range: BTreeMap<(u8, usize), Counts>,
+    /// The same, over the frames with the object in a head's field of view.
+    by_range_in_view: BTreeMap<(u8, usize), Counts>,
     by_lengths: BTreeMap<(u8, usize), Counts>,
     /// Boats within 100 m and markers or buoys within 60 m: the targets.
     boats_100m: Counts,
@@ -177,11 +179,21 @@ impl TrackingScore {
             let range =
                 (o.pose.position[0] - own.position[0]).hypot(o.pose.position[1] - own.position[1]);
             let detected = os.track_id.is_some();
+            let azimuth = (o.pose.position[1] - own.position[1])
+                .atan2(o.pose.position[0] - own.position[0])
+                - own.yaw;
+            let in_view = self.in_view(azimuth);
             if let Some(bin) = RANGE_BINS_M.iter().position(|&edge| range < edge) {
                 self.by_range
                     .entry((o.class, bin))
                     .or_default()
                     .add(detected);
+                if in_view {
+                    self.by_range_in_view
+                        .entry((o.class, bin))
+                        .or_default()
+                        .add(detected);
+                }
             }
             if let Some(bin) = LENGTH_BINS.iter().position(|&e| os.range_lengths < e) {
                 self.by_lengths
@@ -189,10 +201,6 @@ impl TrackingScore {
                     .or_default()
                     .add(detected);
             }
-            let azimuth = (o.pose.position[1] - own.position[1])
-                .atan2(o.pose.position[0] - own.position[0])
-                - own.yaw;
-            let in_view = self.in_view(azimuth);
             let target = match o.class {
                 truth_class::BOAT if range < 100.0 => {
                     Some((&mut self.boats_100m, &mut self.boats_100m_in_view))
@@ -341,6 +349,7 @@ impl TrackingScore {
                 .collect::<Vec<_>>(),
             "markers_within_60m_in_view": (!self.views.is_empty()).then(|| self.markers_60m_in_view.json()),
             "by_range_m": bins(&self.by_range, &RANGE_BINS_M, "m"),
+            "by_range_m_in_view": bins(&self.by_range_in_view, &RANGE_BINS_M, "m"),
             "by_range_lengths": bins(&self.by_lengths, &LENGTH_BINS, "object lengths"),
             "confirmed_tracks": self.lives.len(),
             "false_tracks": self.false_tracks(),
@@ -525,6 +534,12 @@ mod tests {
         assert_eq!(r["boats_within_100m"]["frames"], 2);
         assert_eq!(r["boats_within_100m_in_view"]["frames"], 1);
         assert_eq!(r["boats_within_100m_in_view"]["detected"], 0);
+        // By range in view: the boat's 25-50 m bin once, no buoy bin.
+        let in_view_bins = r["by_range_m_in_view"].as_array().unwrap();
+        assert_eq!(in_view_bins.len(), 1);
+        assert_eq!(in_view_bins[0]["class"], "boat");
+        assert_eq!(in_view_bins[0]["below"], 50.0);
+        assert_eq!(in_view_bins[0]["counts"]["frames"], 1);
         assert_eq!(r["markers_within_60m"]["frames"], 2);
         assert_eq!(r["markers_within_60m_in_view"]["frames"], 0);
     }
