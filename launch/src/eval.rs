@@ -450,6 +450,9 @@ fn print_report(r: &serde_json::Value) {
             b["confirmed_contacts"].as_array().map_or(0, |c| c.len()),
         );
         println!("{}", tracking_line(&b["tracking"]));
+        if let Some(line) = boats_by_object_line(&b["tracking"]) {
+            println!("{line}");
+        }
         println!(
             "overview picture: {}",
             r["overview"].as_str().unwrap_or("-")
@@ -496,6 +499,32 @@ pub(crate) fn tracking_line(t: &serde_json::Value) -> String {
     )
 }
 
+/// The boats within 100 m one by one (`TrackingScore::report`'s `boats_within_100m_by_object`):
+/// which boat a run's misses are on. `None` without boats.
+pub(crate) fn boats_by_object_line(t: &serde_json::Value) -> Option<String> {
+    let boats = t["boats_within_100m_by_object"].as_array()?;
+    if boats.is_empty() {
+        return None;
+    }
+    let each: Vec<String> = boats
+        .iter()
+        .map(|b| {
+            format!(
+                "#{}: {} of {} ({} of {})",
+                b["id"],
+                b["all"]["detected"],
+                b["all"]["frames"],
+                b["in_view"]["detected"],
+                b["in_view"]["frames"]
+            )
+        })
+        .collect();
+    Some(format!(
+        "  boats within 100 m by truth id, detected of frames (in a head's view): {}",
+        each.join(", ")
+    ))
+}
+
 /// A number scaled, with two decimals, or "-".
 fn fixed2(v: &serde_json::Value, scale: f64) -> String {
     v.as_f64()
@@ -523,5 +552,26 @@ fn in_view(c: &serde_json::Value) -> String {
         format!("in a head's view {} of {}", c["detected"], c["frames"])
     } else {
         "no head's view known".to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn the_boats_line_names_each_boat_with_its_frames() {
+        let t = json!({"boats_within_100m_by_object": [
+            {"id": 3, "all": {"detected": 61, "frames": 240}, "in_view": {"detected": 51, "frames": 63}},
+            {"id": 7, "all": {"detected": 0, "frames": 5}, "in_view": {"detected": 0, "frames": 0}},
+        ]});
+        assert_eq!(
+            boats_by_object_line(&t).unwrap(),
+            "  boats within 100 m by truth id, detected of frames (in a head's view): \
+             #3: 61 of 240 (51 of 63), #7: 0 of 5 (0 of 0)"
+        );
+        assert!(boats_by_object_line(&json!({"boats_within_100m_by_object": []})).is_none());
+        assert!(boats_by_object_line(&json!({})).is_none());
     }
 }

@@ -52,6 +52,9 @@ pub fn run(args: RetrackArgs) -> anyhow::Result<()> {
             );
             for which in ["recorded", "replayed"] {
                 println!("  {which}: {}", crate::eval::tracking_line(&report[which]));
+                if let Some(line) = crate::eval::boats_by_object_line(&report[which]) {
+                    println!("  {line}");
+                }
             }
         }
         reports.push(report);
