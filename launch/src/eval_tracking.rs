@@ -52,6 +52,14 @@ impl Counts {
     }
 }
 
+/// Counts a frame of a target over all frames, and over those with it in a head's view.
+fn add_frame(all: &mut Counts, seen: &mut Counts, detected: bool, in_view: bool) {
+    all.add(detected);
+    if in_view {
+        seen.add(detected);
+    }
+}
+
 /// Whether an ENU point is land (the scenario's terrain above the water).
 pub type LandTest = Box<dyn Fn(f64, f64) -> bool>;
 
@@ -176,12 +184,10 @@ impl TrackingScore {
                 self.aground_frames += 1;
                 continue;
             }
-            let range =
-                (o.pose.position[0] - own.position[0]).hypot(o.pose.position[1] - own.position[1]);
+            let (dx, dy) = (x - own.position[0], y - own.position[1]);
+            let range = dx.hypot(dy);
             let detected = os.track_id.is_some();
-            let azimuth = (o.pose.position[1] - own.position[1])
-                .atan2(o.pose.position[0] - own.position[0])
-                - own.yaw;
+            let azimuth = dy.atan2(dx) - own.yaw;
             let in_view = self.in_view(azimuth);
             if let Some(bin) = RANGE_BINS_M.iter().position(|&edge| range < edge) {
                 self.by_range
@@ -201,27 +207,24 @@ impl TrackingScore {
                     .or_default()
                     .add(detected);
             }
-            let target = match o.class {
+            match o.class {
                 truth_class::BOAT if range < 100.0 => {
-                    Some((&mut self.boats_100m, &mut self.boats_100m_in_view))
+                    let (all, seen) = self.boats_100m_by_object.entry(o.id).or_default();
+                    add_frame(all, seen, detected, in_view);
+                    add_frame(
+                        &mut self.boats_100m,
+                        &mut self.boats_100m_in_view,
+                        detected,
+                        in_view,
+                    );
                 }
-                truth_class::BUOY | truth_class::MARKER if range < 60.0 => {
-                    Some((&mut self.markers_60m, &mut self.markers_60m_in_view))
-                }
-                _ => None,
-            };
-            if let Some((all, seen)) = target {
-                all.add(detected);
-                if in_view {
-                    seen.add(detected);
-                }
-            }
-            if o.class == truth_class::BOAT && range < 100.0 {
-                let (all, seen) = self.boats_100m_by_object.entry(o.id).or_default();
-                all.add(detected);
-                if in_view {
-                    seen.add(detected);
-                }
+                truth_class::BUOY | truth_class::MARKER if range < 60.0 => add_frame(
+                    &mut self.markers_60m,
+                    &mut self.markers_60m_in_view,
+                    detected,
+                    in_view,
+                ),
+                _ => {}
             }
             if let Some(id) = os.track_id {
                 self.matched_ids.insert(id);
