@@ -450,7 +450,7 @@ fn print_report(r: &serde_json::Value) {
             b["confirmed_contacts"].as_array().map_or(0, |c| c.len()),
         );
         println!("{}", tracking_line(&b["tracking"]));
-        if let Some(line) = boats_by_object_line(&b["tracking"]) {
+        for line in tracking_detail_lines(&b["tracking"]) {
             println!("{line}");
         }
         println!(
@@ -525,6 +525,53 @@ pub(crate) fn boats_by_object_line(t: &serde_json::Value) -> Option<String> {
     ))
 }
 
+/// The class each true object's track was reported as (`TrackingScore::report`'s
+/// `class_of_tracked_frames`): "boat 412 of 507 (false-alarm 45, marker 50)", the classes it should
+/// not have been reported as in brackets. `None` before any
+/// object had a track.
+pub(crate) fn class_line(t: &serde_json::Value) -> Option<String> {
+    let classes = t["class_of_tracked_frames"].as_array()?;
+    if classes.is_empty() {
+        return None;
+    }
+    let each: Vec<String> = classes
+        .iter()
+        .map(|c| {
+            let expected = c["expected"].as_str().unwrap_or("-");
+            let others: Vec<String> = c["said"]
+                .as_object()
+                .into_iter()
+                .flatten()
+                .filter(|(said, _)| *said != expected)
+                .map(|(said, n)| format!("{said} {n}"))
+                .collect();
+            let others = if others.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", others.join(", "))
+            };
+            format!(
+                "{} {} of {}{others}",
+                c["truth"].as_str().unwrap_or("-"),
+                c["right"],
+                c["frames"]
+            )
+        })
+        .collect();
+    Some(format!(
+        "  reported as the right class, of the frames with a track: {}",
+        each.join(", ")
+    ))
+}
+
+/// The lines printed under the tracking line: the boats one by one and the classes reported.
+pub(crate) fn tracking_detail_lines(t: &serde_json::Value) -> Vec<String> {
+    [boats_by_object_line(t), class_line(t)]
+        .into_iter()
+        .flatten()
+        .collect()
+}
+
 /// A number scaled, with two decimals, or "-".
 fn fixed2(v: &serde_json::Value, scale: f64) -> String {
     v.as_f64()
@@ -573,5 +620,21 @@ mod tests {
         );
         assert!(boats_by_object_line(&json!({"boats_within_100m_by_object": []})).is_none());
         assert!(boats_by_object_line(&json!({})).is_none());
+    }
+
+    #[test]
+    fn the_class_line_gives_the_right_class_and_the_wrong_ones() {
+        let t = json!({"class_of_tracked_frames": [
+            {"truth": "boat", "expected": "boat", "frames": 10, "right": 7,
+             "said": {"boat": 7, "extended": 1, "false-alarm": 2}},
+            {"truth": "buoy", "expected": "marker", "frames": 4, "right": 4, "said": {"marker": 4}},
+        ]});
+        assert_eq!(
+            class_line(&t).unwrap(),
+            "  reported as the right class, of the frames with a track: \
+             boat 7 of 10 (extended 1, false-alarm 2), buoy 4 of 4"
+        );
+        assert!(class_line(&json!({"class_of_tracked_frames": []})).is_none());
+        assert_eq!(tracking_detail_lines(&json!({})), Vec::<String>::new());
     }
 }

@@ -52,6 +52,16 @@ impl Counts {
     }
 }
 
+/// The contact class a true object's track should be reported as: a pylon is an extended
+/// obstacle, a buoy a channel marker.
+fn expected_class(truth: u8) -> u8 {
+    match truth {
+        truth_class::BOAT => contact_class::BOAT,
+        truth_class::BUOY | truth_class::MARKER => contact_class::CHANNEL_MARKER,
+        _ => contact_class::EXTENDED,
+    }
+}
+
 /// Counts a frame of a target over all frames, and over those with it in a head's view.
 fn add_frame(all: &mut Counts, seen: &mut Counts, detected: bool, in_view: bool) {
     all.add(detected);
@@ -117,6 +127,9 @@ pub struct TrackingScore {
     shore_ids: BTreeSet<u32>,
     /// Frames of scored true objects left out because they lay on land.
     aground_frames: u64,
+    /// (truth class, reported class) -> frames in which the object had a track: what the
+    /// sequencer was told each true object was.
+    reported_class: BTreeMap<(u8, u8), u64>,
     speed_errors_pct: Vec<f64>,
     /// The same over the frames in which the track had a detection (not coasting).
     detected_speed_errors_pct: Vec<f64>,
@@ -228,6 +241,7 @@ impl TrackingScore {
             }
             if let Some(id) = os.track_id {
                 self.matched_ids.insert(id);
+                *self.reported_class.entry((o.class, os.class)).or_default() += 1;
                 self.along_cross.add(os);
             }
             if let (Some(speed), Some(heading)) = (os.speed_error_pct, os.heading_error) {
@@ -330,6 +344,28 @@ impl TrackingScore {
         self.shore_ids.difference(&self.matched_ids).count()
     }
 
+    /// Per true class, the frames it had a track, how many reported the class it should be, and
+    /// the count of each class reported.
+    fn reported_classes(&self) -> Vec<serde_json::Value> {
+        SCORED
+            .iter()
+            .filter_map(|&truth| {
+                let said: BTreeMap<&str, u64> = self
+                    .reported_class
+                    .range((truth, 0)..=(truth, u8::MAX))
+                    .map(|(&(_, c), &n)| (contact_class::name(c), n))
+                    .collect();
+                let frames: u64 = said.values().sum();
+                let expected = contact_class::name(expected_class(truth));
+                let right = said.get(expected).copied().unwrap_or(0);
+                (frames > 0).then(|| {
+                    json!({"truth": truth_class::name(truth), "expected": expected,
+                           "frames": frames, "right": right, "said": said})
+                })
+            })
+            .collect()
+    }
+
     pub fn report(&self, scenario_minutes: f64) -> serde_json::Value {
         let bins = |map: &BTreeMap<(u8, usize), Counts>, edges: &[f64], unit: &str| {
             map.iter()
@@ -364,6 +400,7 @@ impl TrackingScore {
             "false_object_tracks_per_min": (scenario_minutes > 0.0)
                 .then(|| self.false_object_tracks() as f64 / scenario_minutes),
             "tracks": self.track_list(),
+            "class_of_tracked_frames": self.reported_classes(),
             "moving_speed_error_pct": {"p50": median(&self.speed_errors_pct),
                                        "samples": self.speed_errors_pct.len(),
                                        "detected_p50": median(&self.detected_speed_errors_pct),
@@ -484,6 +521,7 @@ mod tests {
         list.hdr.stamp_ns = 9;
         list.contacts[0] = Contact {
             coasting: 1,
+            class: contact_class::BOAT,
             ..contact(10, [1.0, 40.0], [4.0, 0.0])
         };
         s.on_contacts(&list);
@@ -494,6 +532,12 @@ mod tests {
             .as_f64()
             .unwrap();
         assert!((detected - 4.0).abs() < 1e-9, "{detected}");
+        // The boat's track was reported unknown, then a boat; the untracked buoy has no entry.
+        assert_eq!(
+            r["class_of_tracked_frames"],
+            json!([{"truth": "boat", "expected": "boat", "frames": 2, "right": 1,
+                    "said": {"boat": 1, "unknown": 1}}])
+        );
         // The boat is 40 m out: the 25-50 m bin, and 5 lengths -> the 5-10 lengths bin.
         let boat_bin = r["by_range_m"]
             .as_array()

@@ -52,7 +52,7 @@ pub fn run(args: RetrackArgs) -> anyhow::Result<()> {
             );
             for which in ["recorded", "replayed"] {
                 println!("  {which}: {}", crate::eval::tracking_line(&report[which]));
-                if let Some(line) = crate::eval::boats_by_object_line(&report[which]) {
+                for line in crate::eval::tracking_detail_lines(&report[which]) {
                     println!("  {line}");
                 }
             }

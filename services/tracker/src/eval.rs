@@ -12,6 +12,8 @@ pub struct ObjectScore {
     pub track_id: Option<u32>,
     /// That track had no detection this frame (out of view it is a prediction).
     pub coasting: bool,
+    /// The class that track was reported as ([`messages::contact_class`]; 0 without a track).
+    pub class: u8,
     /// |speed error| / true speed in percent (None when the object is slower than 0.5 m/s).
     pub speed_error_pct: Option<f64>,
     /// Heading error (rad, wrapped to +-pi; None below 0.5 m/s).
@@ -57,6 +59,7 @@ pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f6
         if let Some((c, _)) = best {
             s.track_id = Some(c.id);
             s.coasting = c.coasting == 1;
+            s.class = c.class;
             let speed = o.velocity[0].hypot(o.velocity[1]);
             if speed >= 0.5 {
                 let est = c.velocity[0].hypot(c.velocity[1]);
@@ -179,6 +182,7 @@ mod tests {
         cov[5] = 0.25;
         list.contacts[0] = Contact {
             id: 3,
+            class: messages::contact_class::BOAT,
             confirmed: 1,
             position: [31.0, 0.5],
             velocity: [0.0, 5.2],
@@ -202,6 +206,7 @@ mod tests {
         assert_eq!(s.objects.len(), 2);
         let boat = s.objects[0];
         assert_eq!(boat.track_id, Some(3));
+        assert_eq!(boat.class, messages::contact_class::BOAT);
         assert!((boat.range_lengths - 5.0).abs() < 1e-9);
         assert!((boat.speed_error_pct.unwrap() - 4.0).abs() < 1e-6);
         assert!(boat.heading_error.unwrap().abs() < 1e-9);
