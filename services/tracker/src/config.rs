@@ -24,7 +24,7 @@ fn default_deadline() -> u64 {
 
 /// Reads a tracker config file and the contact model it names.
 pub fn load(config: &Path) -> anyhow::Result<(ServiceConfig, Model)> {
-    let cfg: ServiceConfig = runtime::config::load(config)?;
+    let cfg = load_settings(config)?;
     let path = if cfg.model.is_absolute() {
         cfg.model.clone()
     } else {
@@ -33,4 +33,10 @@ pub fn load(config: &Path) -> anyhow::Result<(ServiceConfig, Model)> {
     let model =
         Model::load(&path).with_context(|| format!("configuration {}", config.display()))?;
     Ok((cfg, model))
+}
+
+/// Reads a tracker config file alone: what the training tool needs to detect as the service does,
+/// before there is a model to load.
+pub fn load_settings(config: &Path) -> anyhow::Result<ServiceConfig> {
+    Ok(runtime::config::load(config)?)
 }

@@ -42,6 +42,11 @@ pub struct Detection {
     pub elongation: f64,
     /// Mean hazard probability (0..1).
     pub mean_hazard: f64,
+    /// Hazard-weighted standard deviation of the cells along and across the line of sight from
+    /// the map's centre (m): stereo smears an object in range, by metres at 100 m, while its width
+    /// across the line of sight stays what the object's is.
+    pub along_sd_m: f64,
+    pub across_sd_m: f64,
     /// Highest cell hazard (0..=255); below the detection threshold the component exists only
     /// through a guide window.
     pub peak_hazard: u8,
@@ -296,13 +301,25 @@ impl Detector {
             let west = grid.center[0] - grid.width as f64 / 2.0 * r;
             let south = grid.center[1] - grid.height as f64 / 2.0 * r;
             let at = |cx: f64, cy: f64| [west + (cx + 0.5) * r, south + (cy + 0.5) * r];
+            let position = at(mx, my);
+            let (ex, ey) = (position[0] - grid.center[0], position[1] - grid.center[1]);
+            let range_m = ex.hypot(ey);
+            let (ux, uy) = if range_m > 1e-9 {
+                (ex / range_m, ey / range_m)
+            } else {
+                (1.0, 0.0)
+            };
+            let along_var = ux * ux * vxx + 2.0 * ux * uy * vxy + uy * uy * vyy;
+            let across_var = uy * uy * vxx - 2.0 * ux * uy * vxy + ux * ux * vyy;
             out.push(Detection {
-                position: at(mx, my),
+                position,
                 extent: [(c1 - c0 + 1) as f64 * r, (r1 - r0 + 1) as f64 * r],
                 area: n as f64 * r * r,
                 height: hmax.max(0) as f64 / 100.0,
                 elongation: (l1 / l2).sqrt(),
                 mean_hazard: sw / n as f64,
+                along_sd_m: along_var.max(0.0).sqrt() * r,
+                across_sd_m: across_var.max(0.0).sqrt() * r,
                 peak_hazard: peak,
                 cells: n,
                 fresh_cells: fresh_n,
@@ -320,6 +337,53 @@ impl Detector {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spread_is_measured_along_and_across_the_line_of_sight() {
+        // The vessel at the map's centre (0, 0); 0.5 m cells, the grid 40 m wide.
+        let grid = GridGeometry {
+            width: 80,
+            height: 80,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        let mut cells = vec![MapCell::default(); 80 * 80];
+        // Due east of the vessel: a bar 10 cells long east-west (along the line of sight) and,
+        // due north, one 10 cells long east-west (across it).
+        for k in 0..10 {
+            cells[40 * 80 + 65 + k].hazard = 255;
+            cells[70 * 80 + 35 + k].hazard = 255;
+        }
+        let mut out = Vec::new();
+        let params = DetectParams {
+            threshold: 128,
+            min_cells: 1,
+            max: 4,
+            link_cells: 1,
+        };
+        Detector::new().detect(&grid, &cells, &params, &mut out);
+        let east = out.iter().find(|d| d.position[0] > 10.0).unwrap();
+        let north = out.iter().find(|d| d.position[1] > 10.0).unwrap();
+        // Ten cells in a row: sd sqrt((10^2 - 1) / 12 + 1 / 12) cells = 1.44 m; one cell across:
+        // sqrt(1 / 12) cells = 0.14 m.
+        let (long, thin) = ((100.0f64 / 12.0).sqrt() * 0.5, (1.0f64 / 12.0).sqrt() * 0.5);
+        assert!((east.along_sd_m - long).abs() < 0.02, "{}", east.along_sd_m);
+        assert!(
+            (east.across_sd_m - thin).abs() < 0.02,
+            "{}",
+            east.across_sd_m
+        );
+        assert!(
+            (north.along_sd_m - thin).abs() < 0.02,
+            "{}",
+            north.along_sd_m
+        );
+        assert!(
+            (north.across_sd_m - long).abs() < 0.02,
+            "{}",
+            north.across_sd_m
+        );
+    }
 
     #[test]
     fn components_are_8_connected_with_shape_features() {

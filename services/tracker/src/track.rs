@@ -385,7 +385,7 @@ pub struct Tracker {
 }
 
 impl Tracker {
-    pub fn new(cfg: TrackerConfig, model: Model) -> Result<Self, TrackError> {
+    pub fn new(cfg: TrackerConfig, mut model: Model) -> Result<Self, TrackError> {
         let bad = |m: &str| Err(TrackError::Config(m.to_string()));
         for (hits, window) in [
             (cfg.confirm_hits, cfg.confirm_window),
@@ -460,8 +460,8 @@ impl Tracker {
         if !(cfg.guide_margin_m.is_finite() && (0.0..=20.0).contains(&cfg.guide_margin_m)) {
             return bad("guide_margin_m must be within [0, 20]");
         }
-        if model.validate().is_err() {
-            return bad("contact model is invalid");
+        if let Err(e) = model.prepare() {
+            return bad(&format!("contact model is invalid: {e}"));
         }
         Ok(Self {
             clutter: ClutterMap::new(cfg.clutter_tau_s),

@@ -9,7 +9,7 @@
 //!   low wave blobs as false alarms), for scenes with no recording. The model is only as good as
 //!   that noise model: in closed loop it called most boats "extended".
 
-use crate::classify::{features, ClassModel, Model, CLASSES, FEATURES};
+use crate::classify::{features, mean_and_cov, ClassModel, Model, CLASSES, FEATURES, N_FEATURES};
 use crate::detect::{Detection, Detector};
 use messages::{contact_class, GridGeometry, MapCell};
 
@@ -290,45 +290,44 @@ pub fn label_by_truth(
     }
 }
 
-/// Fits a Gaussian naive-Bayes model with equal priors (the class mix of training maps says little
-/// about the mix at sea). Variances get a floor so a class with few samples does not become spiky.
-pub fn fit(samples: &[(Detection, u8)], provenance: String) -> Result<Model, String> {
+/// Fits one Gaussian per class, with equal priors (the class mix of training maps says little
+/// about the mix at sea). The covariances between features are scaled by `1 - shrink`
+/// (regularised discriminant analysis: 0 keeps them, 1 leaves the variances alone, naive Bayes).
+pub fn fit(samples: &[(Detection, u8)], shrink: f64, provenance: String) -> Result<Model, String> {
     let mut classes = Vec::new();
     for class in CLASSES {
-        let xs: Vec<[f64; 5]> = samples
+        let xs: Vec<[f64; N_FEATURES]> = samples
             .iter()
             .filter(|s| s.1 == class)
             .map(|s| features(&s.0))
             .collect();
-        if xs.len() < 5 {
+        if xs.len() < 5 * N_FEATURES {
             return Err(format!(
                 "only {} examples of class {}",
                 xs.len(),
                 contact_class::name(class)
             ));
         }
-        let n = xs.len() as f64;
-        let mean: Vec<f64> = (0..FEATURES.len())
-            .map(|j| xs.iter().map(|x| x[j]).sum::<f64>() / n)
-            .collect();
-        let var: Vec<f64> = (0..FEATURES.len())
-            .map(|j| (xs.iter().map(|x| (x[j] - mean[j]).powi(2)).sum::<f64>() / n).max(1e-3))
-            .collect();
-        classes.push(ClassModel {
+        let (mean, mut cov) = mean_and_cov(&xs, 1e-3);
+        for (k, c) in cov.iter_mut().enumerate() {
+            if k / N_FEATURES != k % N_FEATURES {
+                *c *= 1.0 - shrink.clamp(0.0, 1.0);
+            }
+        }
+        classes.push(ClassModel::new(
             class,
-            name: contact_class::name(class).to_string(),
-            prior: 1.0 / CLASSES.len() as f64,
+            1.0 / CLASSES.len() as f64,
             mean,
-            var,
-        });
+            cov,
+        ));
     }
-    let model = Model {
+    let mut model = Model {
         version: Model::VERSION,
         features: FEATURES.iter().map(|s| s.to_string()).collect(),
         classes,
         provenance,
     };
-    model.validate()?;
+    model.prepare()?;
     Ok(model)
 }
 

@@ -882,8 +882,9 @@ fn where_stereo_clutter_crowds_a_track_needs_more_sightings_and_elsewhere_it_doe
 }
 
 /// The class the tracker reports, after 4 s at 5 maps a second, for a 13 m x 4.5 m component
-/// standing 4 m above the water that moves north at `speed` m/s: what the map holds of a boat
-/// with the cells its 3-map average still holds astern of it.
+/// standing 7 m above the water that moves north at `speed` m/s: what the map holds of a boat
+/// with the cells its 3-map average still holds astern of it and a tall superstructure (or, the
+/// stereo's height error at range added, of a low one).
 fn class_of_a_long_tall_blob(speed: f64) -> u8 {
     let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
     let grid = grid_100m();
@@ -891,7 +892,7 @@ fn class_of_a_long_tall_blob(speed: f64) -> u8 {
     for k in 0..20u64 {
         let y = -30.0 + speed * k as f64 * 0.2;
         let mut cells = open_water(&grid);
-        paint(&grid, &mut cells, 150, 400, |[cx, cy]| {
+        paint(&grid, &mut cells, 150, 700, |[cx, cy]| {
             (cx - 10.0).abs() <= 2.25 && (cy - y).abs() <= 6.5
         });
         let hdr = map_header(grid, k, 200_000_000);
