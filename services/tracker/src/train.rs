@@ -290,10 +290,41 @@ pub fn label_by_truth(
     }
 }
 
-/// Fits one Gaussian per class, with equal priors (the class mix of training maps says little
-/// about the mix at sea). The covariances between features are scaled by `1 - shrink`
-/// (regularised discriminant analysis: 0 keeps them, 1 leaves the variances alone, naive Bayes).
-pub fn fit(samples: &[(Detection, u8)], shrink: f64, provenance: String) -> Result<Model, String> {
+/// How [`fit`] shapes the model beyond the data.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitOptions {
+    /// The covariances between features are scaled by `1 - shrink` (regularised discriminant
+    /// analysis: 0 keeps them, 1 leaves the variances alone, naive Bayes).
+    pub shrink: f64,
+    /// A false alarm's prior over each object class's: the object classes share equal priors (the
+    /// class mix of training maps says little about the mix at sea), and a weight above 1 makes an
+    /// ambiguous detection a false alarm rather than an object the sequencer avoids or follows.
+    pub false_alarm_weight: f64,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            shrink: 0.0,
+            false_alarm_weight: 1.0,
+        }
+    }
+}
+
+/// Fits one Gaussian per class.
+pub fn fit(
+    samples: &[(Detection, u8)],
+    options: FitOptions,
+    provenance: String,
+) -> Result<Model, String> {
+    let weight = |class: u8| {
+        if class == contact_class::FALSE_ALARM {
+            options.false_alarm_weight.max(1e-3)
+        } else {
+            1.0
+        }
+    };
+    let total: f64 = CLASSES.iter().map(|&c| weight(c)).sum();
     let mut classes = Vec::new();
     for class in CLASSES {
         let xs: Vec<[f64; N_FEATURES]> = samples
@@ -311,15 +342,10 @@ pub fn fit(samples: &[(Detection, u8)], shrink: f64, provenance: String) -> Resu
         let (mean, mut cov) = mean_and_cov(&xs, 1e-3);
         for (k, c) in cov.iter_mut().enumerate() {
             if k / N_FEATURES != k % N_FEATURES {
-                *c *= 1.0 - shrink.clamp(0.0, 1.0);
+                *c *= 1.0 - options.shrink.clamp(0.0, 1.0);
             }
         }
-        classes.push(ClassModel::new(
-            class,
-            1.0 / CLASSES.len() as f64,
-            mean,
-            cov,
-        ));
+        classes.push(ClassModel::new(class, weight(class) / total, mean, cov));
     }
     let mut model = Model {
         version: Model::VERSION,
@@ -363,6 +389,61 @@ mod tests {
             cells: 16,
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn fit_weighs_false_alarms_and_shrinks_the_covariances() {
+        // 40 detections per class whose area and height grow together.
+        let samples: Vec<(Detection, u8)> = CLASSES
+            .iter()
+            .enumerate()
+            .flat_map(|(k, &class)| {
+                (0..40).map(move |i| {
+                    let x = 1.0 + k as f64 + 0.05 * i as f64;
+                    let d = Detection {
+                        area: x.exp(),
+                        height: x + 0.01 * (i % 3) as f64,
+                        elongation: 1.0 + 0.1 * (i % 5) as f64,
+                        extent: [1.0 + 0.1 * (i % 7) as f64, 1.0],
+                        mean_hazard: 0.5 + 0.01 * (i % 4) as f64,
+                        along_sd_m: 0.5 + 0.02 * (i % 6) as f64,
+                        across_sd_m: 0.4 + 0.03 * (i % 2) as f64,
+                        ..Default::default()
+                    };
+                    (d, class)
+                })
+            })
+            .collect();
+        let options = FitOptions {
+            shrink: 0.0,
+            false_alarm_weight: 2.0,
+        };
+        let m = fit(&samples, options, String::new()).unwrap();
+        for c in &m.classes {
+            let expected = if c.class == contact_class::FALSE_ALARM {
+                0.4
+            } else {
+                0.2
+            };
+            assert!((c.prior - expected).abs() < 1e-12, "{} {}", c.name, c.prior);
+        }
+        // ln(area) and height move together: a covariance between them, kept unshrunk ...
+        let n = FEATURES.len();
+        assert!(m.classes[0].cov[1] > 0.5 * m.classes[0].cov[0]);
+        // ... and gone at shrink 1 (naive Bayes), the variances the same.
+        let naive = fit(
+            &samples,
+            FitOptions {
+                shrink: 1.0,
+                ..options
+            },
+            String::new(),
+        )
+        .unwrap();
+        assert_eq!(naive.classes[0].cov[1], 0.0);
+        assert_eq!(naive.classes[0].cov[n + 1], m.classes[0].cov[n + 1]);
+        // Too few examples of a class is an error, not a model.
+        assert!(fit(&samples[..60], options, String::new()).is_err());
     }
 
     #[test]
