@@ -499,16 +499,27 @@ pub(crate) fn tracking_line(t: &serde_json::Value) -> String {
     )
 }
 
+/// "  <title>: <item>, <item>, ..." over the array `key` of a tracking report; `None` when it is
+/// missing or empty.
+fn listed_line(
+    t: &serde_json::Value,
+    key: &str,
+    title: &str,
+    item: impl Fn(&serde_json::Value) -> String,
+) -> Option<String> {
+    let items = t[key].as_array().filter(|items| !items.is_empty())?;
+    let each: Vec<String> = items.iter().map(item).collect();
+    Some(format!("  {title}: {}", each.join(", ")))
+}
+
 /// The boats within 100 m one by one (`TrackingScore::report`'s `boats_within_100m_by_object`):
 /// which boat a run's misses are on. `None` without boats.
 pub(crate) fn boats_by_object_line(t: &serde_json::Value) -> Option<String> {
-    let boats = t["boats_within_100m_by_object"].as_array()?;
-    if boats.is_empty() {
-        return None;
-    }
-    let each: Vec<String> = boats
-        .iter()
-        .map(|b| {
+    listed_line(
+        t,
+        "boats_within_100m_by_object",
+        "boats within 100 m by truth id, detected of frames (in a head's view)",
+        |b| {
             format!(
                 "#{}: {} of {} ({} of {})",
                 b["id"],
@@ -517,26 +528,19 @@ pub(crate) fn boats_by_object_line(t: &serde_json::Value) -> Option<String> {
                 b["in_view"]["detected"],
                 b["in_view"]["frames"]
             )
-        })
-        .collect();
-    Some(format!(
-        "  boats within 100 m by truth id, detected of frames (in a head's view): {}",
-        each.join(", ")
-    ))
+        },
+    )
 }
 
 /// The class each true object's track was reported as (`TrackingScore::report`'s
 /// `class_of_tracked_frames`): "boat 412 of 507 (false-alarm 45, marker 50)", the classes it should
-/// not have been reported as in brackets. `None` before any
-/// object had a track.
+/// not have been reported as in brackets. `None` before any object had a track.
 pub(crate) fn class_line(t: &serde_json::Value) -> Option<String> {
-    let classes = t["class_of_tracked_frames"].as_array()?;
-    if classes.is_empty() {
-        return None;
-    }
-    let each: Vec<String> = classes
-        .iter()
-        .map(|c| {
+    listed_line(
+        t,
+        "class_of_tracked_frames",
+        "reported as the right class, of the frames with a track",
+        |c| {
             let expected = c["expected"].as_str().unwrap_or("-");
             let others: Vec<String> = c["said"]
                 .as_object()
@@ -556,12 +560,8 @@ pub(crate) fn class_line(t: &serde_json::Value) -> Option<String> {
                 c["right"],
                 c["frames"]
             )
-        })
-        .collect();
-    Some(format!(
-        "  reported as the right class, of the frames with a track: {}",
-        each.join(", ")
-    ))
+        },
+    )
 }
 
 /// The lines printed under the tracking line: the boats one by one and the classes reported.

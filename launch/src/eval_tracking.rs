@@ -11,7 +11,7 @@ use messages::{contact_class, truth_class, CameraModel, ContactList, GroundTruth
 use serde_json::json;
 use sim::math::wrap_pi;
 use std::collections::{BTreeMap, BTreeSet};
-use tracker::eval::{score, AlongCross};
+use tracker::eval::{expected_contact_class, score, AlongCross};
 
 /// A track within this distance of a true object is that object's track (m).
 const GATE_M: f64 = 10.0;
@@ -49,16 +49,6 @@ impl Counts {
     fn json(&self) -> serde_json::Value {
         json!({"frames": self.frames, "detected": self.detected,
                "probability": (self.frames > 0).then(|| self.detected as f64 / self.frames as f64)})
-    }
-}
-
-/// The contact class a true object's track should be reported as: a pylon is an extended
-/// obstacle, a buoy a channel marker.
-fn expected_class(truth: u8) -> u8 {
-    match truth {
-        truth_class::BOAT => contact_class::BOAT,
-        truth_class::BUOY | truth_class::MARKER => contact_class::CHANNEL_MARKER,
-        _ => contact_class::EXTENDED,
     }
 }
 
@@ -356,7 +346,7 @@ impl TrackingScore {
                     .map(|(&(_, c), &n)| (contact_class::name(c), n))
                     .collect();
                 let frames: u64 = said.values().sum();
-                let expected = contact_class::name(expected_class(truth));
+                let expected = contact_class::name(expected_contact_class(truth));
                 let right = said.get(expected).copied().unwrap_or(0);
                 (frames > 0).then(|| {
                     json!({"truth": truth_class::name(truth), "expected": expected,

@@ -91,9 +91,10 @@ fn main() -> anyhow::Result<()> {
             v.parse().with_context(|| format!("{name} takes a number"))
         })
     };
+    let defaults = FitOptions::default();
     let options = FitOptions {
-        shrink: number("--shrink", 0.0)?,
-        false_alarm_weight: number("--false-alarm-weight", 1.0)?,
+        shrink: number("--shrink", defaults.shrink)?,
+        false_alarm_weight: number("--false-alarm-weight", defaults.false_alarm_weight)?,
     };
     report(&examples, source, options, out)
 }
@@ -187,11 +188,7 @@ fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
                 .iter()
                 .filter(|o| o.class != truth_class::OWN_VESSEL)
                 .map(|o| TruthShape {
-                    class: match o.class {
-                        truth_class::BOAT => contact_class::BOAT,
-                        truth_class::BUOY | truth_class::MARKER => contact_class::CHANNEL_MARKER,
-                        _ => contact_class::EXTENDED,
-                    },
+                    class: tracker::eval::expected_contact_class(o.class),
                     position: [o.pose.position[0], o.pose.position[1]],
                     yaw: o.pose.yaw,
                     size: o.extent.map(f64::from),

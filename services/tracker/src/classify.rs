@@ -8,7 +8,7 @@
 
 use crate::detect::Detection;
 use messages::contact_class;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -206,25 +206,6 @@ impl Model {
         let norm: f64 = logs.iter().map(|l| (l - best.1).exp()).sum();
         (best.0, (1.0 / norm) as f32)
     }
-}
-
-/// The mean and covariance of samples of the features (row by row), each variance at least
-/// `min_var` so a class with few samples does not become spiky.
-pub fn mean_and_cov(xs: &[[f64; N_FEATURES]], min_var: f64) -> (Vec<f64>, Vec<f64>) {
-    let n = xs.len().max(1) as f64;
-    let mean = DVector::from_fn(N_FEATURES, |j, _| xs.iter().map(|x| x[j]).sum::<f64>() / n);
-    let mut cov = DMatrix::zeros(N_FEATURES, N_FEATURES);
-    for x in xs {
-        let d = DVector::from_column_slice(x) - &mean;
-        cov += &d * d.transpose() / n;
-    }
-    for j in 0..N_FEATURES {
-        cov[(j, j)] = cov[(j, j)].max(min_var);
-    }
-    (
-        mean.iter().copied().collect(),
-        cov.transpose().iter().copied().collect(),
-    )
 }
 
 #[cfg(test)]

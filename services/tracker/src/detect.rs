@@ -25,6 +25,7 @@
 //! joins at any hazard, and the component also reports the centroid of such cells
 //! ([`Detection::fresh_position`]): where the hull is now.
 
+use crate::line_of_sight;
 use messages::{GridGeometry, MapCell};
 
 /// One connected component of hazard cells.
@@ -302,15 +303,12 @@ impl Detector {
             let south = grid.center[1] - grid.height as f64 / 2.0 * r;
             let at = |cx: f64, cy: f64| [west + (cx + 0.5) * r, south + (cy + 0.5) * r];
             let position = at(mx, my);
-            let (ex, ey) = (position[0] - grid.center[0], position[1] - grid.center[1]);
-            let range_m = ex.hypot(ey);
-            let (ux, uy) = if range_m > 1e-9 {
-                (ex / range_m, ey / range_m)
-            } else {
-                (1.0, 0.0)
-            };
-            let along_var = ux * ux * vxx + 2.0 * ux * uy * vxy + uy * uy * vyy;
-            let across_var = uy * uy * vxx - 2.0 * ux * uy * vxy + ux * ux * vyy;
+            let (sight, _) = line_of_sight::direction([
+                position[0] - grid.center[0],
+                position[1] - grid.center[1],
+            ]);
+            let (along_var, across_var) =
+                line_of_sight::along_across_variances(sight, [vxx, vxy, vyy]);
             out.push(Detection {
                 position,
                 extent: [(c1 - c0 + 1) as f64 * r, (r1 - r0 + 1) as f64 * r],

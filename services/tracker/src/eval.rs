@@ -1,6 +1,7 @@
 //! Scores a contact list against ground truth, for `usv eval` and tests. Pure functions.
 
-use messages::{ContactList, GroundTruth, Pose};
+use crate::line_of_sight;
+use messages::{contact_class, truth_class, ContactList, GroundTruth, Pose};
 
 /// How one truth object was tracked at one instant.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -39,6 +40,16 @@ impl TrackScore {
     }
 }
 
+/// The contact class a true object's track should be reported as: a buoy or a channel marker is
+/// a marker; a pylon, a bridge or anything else not a boat an extended obstacle.
+pub fn expected_contact_class(truth: u8) -> u8 {
+    match truth {
+        truth_class::BOAT => contact_class::BOAT,
+        truth_class::BUOY | truth_class::MARKER => contact_class::CHANNEL_MARKER,
+        _ => contact_class::EXTENDED,
+    }
+}
+
 /// Matches each truth object (own vessel excluded) to the nearest confirmed track within `gate_m`.
 pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f64) -> TrackScore {
     let mut out = TrackScore::default();
@@ -46,7 +57,7 @@ pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f6
     for o in truth.objects() {
         let (tx, ty) = (o.pose.position[0], o.pose.position[1]);
         let (dx, dy) = (tx - own.position[0], ty - own.position[1]);
-        let range = dx.hypot(dy);
+        let (sight, range) = line_of_sight::direction([dx, dy]);
         let mut s = ObjectScore {
             truth_id: o.id,
             range_lengths: range / (o.extent[0] as f64).max(0.1),
@@ -70,21 +81,15 @@ pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f6
                         - std::f64::consts::PI,
                 );
             }
-            let (ux, uy) = if range > 1e-6 {
-                (dx / range, dy / range)
-            } else {
-                (1.0, 0.0)
-            };
+            let [ux, uy] = sight;
             let (ex, ey) = (c.position[0] - tx, c.position[1] - ty);
             s.along_error = ex * ux + ey * uy;
             s.cross_error = -ex * uy + ey * ux;
             let p = |i: usize, j: usize| c.covariance[i * 4 + j] as f64;
-            s.along_sigma = (ux * ux * p(0, 0) + 2.0 * ux * uy * p(0, 1) + uy * uy * p(1, 1))
-                .max(0.0)
-                .sqrt();
-            s.cross_sigma = (uy * uy * p(0, 0) - 2.0 * ux * uy * p(0, 1) + ux * ux * p(1, 1))
-                .max(0.0)
-                .sqrt();
+            let (along_var, cross_var) =
+                line_of_sight::along_across_variances(sight, [p(0, 0), p(0, 1), p(1, 1)]);
+            s.along_sigma = along_var.max(0.0).sqrt();
+            s.cross_sigma = cross_var.max(0.0).sqrt();
         }
         out.objects.push(s);
     }

@@ -17,6 +17,7 @@ pub mod clutter;
 pub mod config;
 pub mod detect;
 pub mod eval;
+pub mod line_of_sight;
 pub mod track;
 pub mod train;
 

@@ -9,9 +9,10 @@
 //!   low wave blobs as false alarms), for scenes with no recording. The model is only as good as
 //!   that noise model: in closed loop it called most boats "extended".
 
-use crate::classify::{features, mean_and_cov, ClassModel, Model, CLASSES, FEATURES, N_FEATURES};
+use crate::classify::{features, ClassModel, Model, CLASSES, FEATURES, N_FEATURES};
 use crate::detect::{Detection, Detector};
 use messages::{contact_class, GridGeometry, MapCell};
+use nalgebra::{DMatrix, DVector};
 
 /// An object to rasterize: contact class, ENU centre, heading, length, width, height (m).
 #[derive(Debug, Clone, Copy)]
@@ -355,6 +356,25 @@ pub fn fit(
     };
     model.prepare()?;
     Ok(model)
+}
+
+/// The mean and covariance of samples of the features (row by row), each variance at least
+/// `min_var` so a class with few samples does not become spiky.
+fn mean_and_cov(xs: &[[f64; N_FEATURES]], min_var: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = xs.len().max(1) as f64;
+    let mean = DVector::from_fn(N_FEATURES, |j, _| xs.iter().map(|x| x[j]).sum::<f64>() / n);
+    let mut cov = DMatrix::zeros(N_FEATURES, N_FEATURES);
+    for x in xs {
+        let d = DVector::from_column_slice(x) - &mean;
+        cov += &d * d.transpose() / n;
+    }
+    for j in 0..N_FEATURES {
+        cov[(j, j)] = cov[(j, j)].max(min_var);
+    }
+    (
+        mean.iter().copied().collect(),
+        cov.transpose().iter().copied().collect(),
+    )
 }
 
 /// Per-class accuracy (recall) on `samples`: (class, correct, total).
