@@ -29,6 +29,7 @@ pub struct RetrackArgs {
     #[arg(long, default_value = "launch/sets/tracker.toml")]
     config: PathBuf,
     /// The recorded scenario, for its shore: tracks on land are shore contacts, not false tracks.
+    /// Default: the `scenario.toml` beside a recording, which `usv eval --seed` writes.
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// One JSON object per recording (recorded and replayed reports) instead of lines.
@@ -39,7 +40,12 @@ pub struct RetrackArgs {
 pub fn run(args: RetrackArgs) -> anyhow::Result<()> {
     let mut reports = Vec::new();
     for recording in &args.recordings {
-        let report = retrack(recording, &args.config, args.scenario.as_deref())?;
+        let beside = recording.with_file_name("scenario.toml");
+        let scenario = args
+            .scenario
+            .as_deref()
+            .or_else(|| beside.is_file().then_some(beside.as_path()));
+        let report = retrack(recording, &args.config, scenario)?;
         if args.json {
             println!("{report}");
         } else {

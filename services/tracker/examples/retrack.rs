@@ -132,12 +132,13 @@ fn main() -> anyhow::Result<()> {
             let (along, across) = frame(d.position);
             if along.hypot(across) <= args.radius {
                 println!(
-                    "   det along {along:6.1} across {across:6.1}  cells {:4} peak {:3} height {:.1} extent {:.1}x{:.1}  fresh {:3} along {:6.1}",
+                    "   det along {along:6.1} across {across:6.1}  cells {:4} peak {:3} height {:.1} extent {:.1}x{:.1}  observed {:3} fresh {:3} along {:6.1}",
                     d.cells,
                     d.peak_hazard,
                     d.height,
                     d.extent[0],
                     d.extent[1],
+                    d.observed_cells,
                     d.fresh_cells,
                     frame(d.fresh_position).0,
                 );
@@ -145,14 +146,15 @@ fn main() -> anyhow::Result<()> {
         }
         for k in &list.contacts[..list.count as usize] {
             let (along, across) = frame(k.position);
-            if along.hypot(across) <= args.radius && k.confirmed != 0 {
+            if along.hypot(across) <= args.radius {
                 let v = k.velocity;
                 let course = v[1].atan2(v[0]).to_degrees();
                 println!(
-                    "   trk {:5} along {along:6.1} across {across:6.1}  {:.1} m/s course {course:4.0} class {} {}",
+                    "   trk {:5} along {along:6.1} across {across:6.1}  {:.1} m/s course {course:4.0} class {} {} {}",
                     k.id,
                     v[0].hypot(v[1]),
                     k.class,
+                    if k.confirmed != 0 { "confirmed" } else { "tentative" },
                     if k.coasting != 0 { "coasting" } else { "detected" },
                 );
             }

@@ -47,6 +47,10 @@ struct Examples {
     train: Vec<(Detection, u8)>,
     test: Vec<(Detection, u8)>,
     scenarios: Vec<String>,
+    /// Recorded detections of buoys and markers (point-like): range from the vessel and the
+    /// position error along and across the line of sight (m), what the tracker's measurement
+    /// noise (`range_sigma`, `cross_sigma`) should describe.
+    marker_errors: Vec<[f64; 3]>,
 }
 
 impl Examples {
@@ -202,6 +206,13 @@ fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
             );
             labelled.clear();
             label_by_truth(&detections, &objects, offset, &land, &mut labelled);
+            let vessel = [header.vessel.position[0], header.vessel.position[1]];
+            examples.marker_errors.extend(
+                labelled
+                    .iter()
+                    .filter(|(_, class)| *class == contact_class::CHANNEL_MARKER)
+                    .filter_map(|(d, _)| marker_error(d, &objects, offset, vessel)),
+            );
             examples
                 .set((si as u64) << 32 | maps)
                 .extend_from_slice(&labelled);
@@ -210,7 +221,62 @@ fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
         println!("{dir_name}: {maps} world maps");
         examples.scenarios.push(name.to_string());
     }
+    print_marker_errors(&examples.marker_errors, &cfg);
     Ok(examples)
+}
+
+/// Range and along/across error of a marker detection from the nearest truth marker (moved into
+/// the map by the INS error `offset`), seen from `vessel`.
+fn marker_error(
+    d: &Detection,
+    objects: &[TruthShape],
+    offset: [f64; 2],
+    vessel: [f64; 2],
+) -> Option<[f64; 3]> {
+    let truth = objects
+        .iter()
+        .filter(|o| o.class == contact_class::CHANNEL_MARKER)
+        .map(|o| [o.position[0] + offset[0], o.position[1] + offset[1]])
+        .min_by(|a, b| {
+            let dist = |p: &[f64; 2]| (p[0] - d.position[0]).hypot(p[1] - d.position[1]);
+            dist(a).total_cmp(&dist(b))
+        })?;
+    let (u, range) =
+        tracker::line_of_sight::direction([truth[0] - vessel[0], truth[1] - vessel[1]]);
+    let e = [d.position[0] - truth[0], d.position[1] - truth[1]];
+    Some([range, e[0] * u[0] + e[1] * u[1], e[1] * u[0] - e[0] * u[1]])
+}
+
+/// Marker detections' position error along and across the line of sight by range, against the
+/// tracker's measurement sigmas there.
+fn print_marker_errors(errors: &[[f64; 3]], cfg: &TrackerConfig) {
+    if errors.is_empty() {
+        return;
+    }
+    println!("marker detections' position error by range (m; RMS and the tracker's sigma):");
+    println!("  range      n   along rms  sigma   across rms  sigma   along mean");
+    for lo in (0..100).step_by(20) {
+        let bin: Vec<_> = errors
+            .iter()
+            .filter(|e| e[0] >= lo as f64 && e[0] < lo as f64 + 20.0)
+            .collect();
+        if bin.is_empty() {
+            continue;
+        }
+        let n = bin.len() as f64;
+        let rms = |k: usize| (bin.iter().map(|e| e[k] * e[k]).sum::<f64>() / n).sqrt();
+        let mid = lo as f64 + 10.0;
+        println!(
+            "  {lo:3}-{:<3} {:6}   {:9.2} {:6.2}   {:10.2} {:6.2}   {:10.2}",
+            lo + 20,
+            bin.len(),
+            rms(1),
+            cfg.range_sigma[0] + cfg.range_sigma[1] * mid,
+            rms(2),
+            cfg.cross_sigma[0] + cfg.cross_sigma[1] * mid,
+            bin.iter().map(|e| e[1]).sum::<f64>() / n,
+        );
+    }
 }
 
 /// Every ground-truth message of a recording, by stamp.
