@@ -128,7 +128,31 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             reports.push(report);
         }
     }
+    if args.closed_loop && !args.json && reports.len() > 1 {
+        println!("== all {} runs", reports.len());
+        println!("{}", totals_line(&reports));
+    }
     Ok(())
+}
+
+/// Collisions, false tracks and the detection targets summed over closed-loop runs.
+fn totals_line(reports: &[serde_json::Value]) -> String {
+    let behaviour: Vec<&serde_json::Value> = reports.iter().map(|r| &r["behaviour"]).collect();
+    let tracking: Vec<&serde_json::Value> = behaviour.iter().map(|b| &b["tracking"]).collect();
+    let minutes = behaviour
+        .iter()
+        .filter_map(|b| b["scenario_time_s"].as_f64())
+        .sum::<f64>()
+        / 60.0;
+    let collisions = behaviour
+        .iter()
+        .filter(|b| b["collision"].as_bool() == Some(true))
+        .count();
+    format!(
+        "collisions in {collisions} of {} runs; {}",
+        reports.len(),
+        tracking_totals_line(&tracking, minutes)
+    )
 }
 
 /// Writes `scenario` with its `seed` replaced to `dir/scenario.toml` and returns that path.
@@ -513,6 +537,35 @@ fn print_report(r: &serde_json::Value) {
     }
 }
 
+/// False tracks and the detection targets summed over several runs' tracking scores
+/// (`TrackingScore::report`), which cover `minutes` in all.
+pub(crate) fn tracking_totals_line(tracking: &[&serde_json::Value], minutes: f64) -> String {
+    let sum = |key: &[&str]| -> u64 {
+        tracking
+            .iter()
+            .map(|t| key.iter().fold(*t, |v, k| &v[*k]).as_u64().unwrap_or(0))
+            .sum()
+    };
+    let per_min = |n: u64| n as f64 / minutes.max(f64::MIN_POSITIVE);
+    let (false_tracks, objects) = (sum(&["false_tracks"]), sum(&["false_object_tracks"]));
+    let counts = |target: &str| {
+        format!(
+            "{} of {} frames (in a head's view {} of {})",
+            sum(&[target, "detected"]),
+            sum(&[target, "frames"]),
+            sum(&[&format!("{target}_in_view"), "detected"]),
+            sum(&[&format!("{target}_in_view"), "frames"]),
+        )
+    };
+    format!(
+        "{false_tracks} false tracks over {minutes:.1} min ({:.1}/min; {objects} reported as objects, {:.1}/min), boats within 100 m {}, markers/buoys within 60 m {}",
+        per_min(false_tracks),
+        per_min(objects),
+        counts("boats_within_100m"),
+        counts("markers_within_60m"),
+    )
+}
+
 /// The one-line summary of a run's tracking score (`TrackingScore::report`).
 pub(crate) fn tracking_line(t: &serde_json::Value) -> String {
     let f = fixed2;
@@ -678,6 +731,24 @@ mod tests {
         );
         assert!(class_line(&json!({"class_of_tracked_frames": []})).is_none());
         assert_eq!(tracking_detail_lines(&json!({})), Vec::<String>::new());
+    }
+
+    #[test]
+    fn several_runs_are_summed_with_their_collisions() {
+        let run = |collision: bool, boats_in_view: u64| {
+            json!({"behaviour": {"collision": collision, "scenario_time_s": 90.0, "tracking": {
+                "false_tracks": 3, "false_object_tracks": 1,
+                "boats_within_100m": {"detected": 40, "frames": 50},
+                "boats_within_100m_in_view": {"detected": boats_in_view, "frames": 20},
+                "markers_within_60m": {"detected": 7, "frames": 8},
+                "markers_within_60m_in_view": {"detected": 2, "frames": 2}}}})
+        };
+        assert_eq!(
+            totals_line(&[run(false, 19), run(true, 15)]),
+            "collisions in 1 of 2 runs; 6 false tracks over 3.0 min (2.0/min; 2 reported as \
+             objects, 0.7/min), boats within 100 m 80 of 100 frames (in a head's view 34 of 40), \
+             markers/buoys within 60 m 14 of 16 frames (in a head's view 4 of 4)"
+        );
     }
 
     #[test]

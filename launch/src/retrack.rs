@@ -76,29 +76,9 @@ pub fn run(args: RetrackArgs) -> anyhow::Result<()> {
 
 /// False tracks and the detection targets summed over several recordings' reports.
 fn totals_line(reports: &[serde_json::Value], which: &str) -> String {
-    let sum = |key: &[&str]| -> u64 {
-        reports
-            .iter()
-            .map(|r| {
-                key.iter()
-                    .fold(&r[which], |v, k| &v[*k])
-                    .as_u64()
-                    .unwrap_or(0)
-            })
-            .sum()
-    };
-    let minutes: f64 = reports.iter().filter_map(|r| r["minutes"].as_f64()).sum();
-    let per_min = |n: u64| n as f64 / minutes.max(f64::MIN_POSITIVE);
-    let (false_tracks, objects) = (sum(&["false_tracks"]), sum(&["false_object_tracks"]));
-    format!(
-        "{false_tracks} false tracks over {minutes:.1} min ({:.1}/min; {objects} reported as objects, {:.1}/min), boats within 100 m {} of {} frames, markers/buoys within 60 m {} of {}",
-        per_min(false_tracks),
-        per_min(objects),
-        sum(&["boats_within_100m", "detected"]),
-        sum(&["boats_within_100m", "frames"]),
-        sum(&["markers_within_60m", "detected"]),
-        sum(&["markers_within_60m", "frames"]),
-    )
+    let tracking: Vec<&serde_json::Value> = reports.iter().map(|r| &r[which]).collect();
+    let minutes = reports.iter().filter_map(|r| r["minutes"].as_f64()).sum();
+    crate::eval::tracking_totals_line(&tracking, minutes)
 }
 
 /// The recorded and the replayed contacts' tracking reports, and how many maps' contacts differ.
