@@ -93,6 +93,11 @@ struct Metrics {
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     crate::session::ensure_stack_built()?;
     let mut reports = Vec::new();
+    let seeds: Vec<Option<u64>> = if args.seed.is_empty() {
+        vec![None]
+    } else {
+        args.seed.iter().copied().map(Some).collect()
+    };
     for scenario in &args.scenarios {
         let scenario = scenario
             .canonicalize()
@@ -102,12 +107,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             .and_then(|s| s.to_str())
             .unwrap_or("scenario")
             .to_string();
-        let seeds: Vec<Option<u64>> = if args.seed.is_empty() {
-            vec![None]
-        } else {
-            args.seed.iter().copied().map(Some).collect()
-        };
-        for seed in seeds {
+        for &seed in &seeds {
             let (name, scenario) = match seed {
                 None => (stem.clone(), scenario.clone()),
                 Some(seed) => {

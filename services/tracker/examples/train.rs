@@ -243,8 +243,11 @@ fn marker_error(
         })?;
     let (u, range) =
         tracker::line_of_sight::direction([truth[0] - vessel[0], truth[1] - vessel[1]]);
-    let e = [d.position[0] - truth[0], d.position[1] - truth[1]];
-    Some([range, e[0] * u[0] + e[1] * u[1], e[1] * u[0] - e[0] * u[1]])
+    let (along, across) = tracker::line_of_sight::along_across(
+        u,
+        [d.position[0] - truth[0], d.position[1] - truth[1]],
+    );
+    Some([range, along, across])
 }
 
 /// Marker detections' position error along and across the line of sight by range, against the

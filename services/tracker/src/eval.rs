@@ -81,10 +81,8 @@ pub fn score(contacts: &ContactList, truth: &GroundTruth, own: &Pose, gate_m: f6
                         - std::f64::consts::PI,
                 );
             }
-            let [ux, uy] = sight;
-            let (ex, ey) = (c.position[0] - tx, c.position[1] - ty);
-            s.along_error = ex * ux + ey * uy;
-            s.cross_error = -ex * uy + ey * ux;
+            (s.along_error, s.cross_error) =
+                line_of_sight::along_across(sight, [c.position[0] - tx, c.position[1] - ty]);
             let p = |i: usize, j: usize| c.covariance[i * 4 + j] as f64;
             let (along_var, cross_var) =
                 line_of_sight::along_across_variances(sight, [p(0, 0), p(0, 1), p(1, 1)]);

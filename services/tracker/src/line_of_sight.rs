@@ -12,6 +12,11 @@ pub fn direction(offset: [f64; 2]) -> ([f64; 2], f64) {
     }
 }
 
+/// The components of an offset `e` along the unit vector `u` and across it (to its left).
+pub fn along_across(u: [f64; 2], e: [f64; 2]) -> (f64, f64) {
+    (e[0] * u[0] + e[1] * u[1], e[1] * u[0] - e[0] * u[1])
+}
+
 /// The variances along the unit vector `u` and across it of a 2-D covariance `[xx, xy, yy]`.
 pub fn along_across_variances(u: [f64; 2], [xx, xy, yy]: [f64; 3]) -> (f64, f64) {
     let [ux, uy] = u;
@@ -33,6 +38,8 @@ mod tests {
         assert_eq!(along_across_variances(east, spread), (4.0, 1.0));
         let (north, _) = direction([0.0, 20.0]);
         assert_eq!(along_across_variances(north, spread), (1.0, 4.0));
+        // Seen looking north, an offset east lies across, to the right.
+        assert_eq!(along_across(north, [2.0, 3.0]), (3.0, -2.0));
         // The vessel's own position looks east.
         assert_eq!(direction([0.0, 0.0]), ([1.0, 0.0], 0.0));
     }
