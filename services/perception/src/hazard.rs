@@ -11,9 +11,9 @@
 //! many metres of solid surface stand there; the elevated fraction; `history`, the decayed share
 //! of this head's recent frames with elevated points at this world cell (0 for a first sighting);
 //! the share of elevated 8-neighbours; `water_margin_px`, the disparity error that would lift water
-//! on the ray of the highest point to its height; `lifted_height_m`, how far the lowest point
-//! stands above [`crate::model::LIFT_HINGE_M`]. Cost: lethal (254) from `cost.lethal_probability`,
-//! below it linear in the probability; unobserved cells 255.
+//! on the ray of the highest point to its height (capped by the model); `lifted_height_m`, how far
+//! the lowest point stands above [`crate::model::LIFT_HINGE_M`]. Cost: lethal (254) from
+//! `cost.lethal_probability`, below it linear in the probability; unobserved cells 255.
 //!
 //! Buffers are sized at the first frame of a head (warm-up) and reused; a frame allocates nothing.
 //! Heights are taken relative to the frame's own water level: a residual plane fitted to the
@@ -844,7 +844,7 @@ impl HazardMapper {
                 // The disparity error (px) that would lift water seen along the ray of the
                 // cell's highest point to that height: d h / camera height. Small for the
                 // "walls" that mismatched water near the horizon builds; large for real objects.
-                (fb / range * s.max_h.max(0.0) / cam_h).min(40.0),
+                (fb / range * s.max_h.max(0.0) / cam_h).min(self.model.water_margin_cap_px),
                 (s.min_h - LIFT_HINGE_M).clamp(0.0, 8.0),
             ];
             let probability = if isolated {

@@ -38,6 +38,14 @@ pub const N_FEATURES: usize = 10;
 /// it traded that evidence away against `water_margin_px`, rating a boat 15-25 m ahead below 0.5.
 pub const LIFT_HINGE_M: f32 = 1.0;
 
+/// `water_margin_px` of a model file that does not name its cap (px): the models trained before
+/// the cap was a model setting.
+pub const UNCAPPED_WATER_MARGIN_PX: f32 = 40.0;
+
+fn uncapped_water_margin() -> f32 {
+    UNCAPPED_WATER_MARGIN_PX
+}
+
 pub type Features = [f32; N_FEATURES];
 
 /// Model file format version.
@@ -81,6 +89,13 @@ pub struct HazardModel {
     pub features: Vec<String>,
     /// Points higher than this above the water count as elevated (m); part of the features.
     pub elevated_height_m: f32,
+    /// `water_margin_px` is capped at this (px), as in training. The feature tells the "walls" a
+    /// pixel or two of mismatch builds from far water apart from real surfaces; beyond a few
+    /// pixels it says no more than "not such a wall", yet uncapped it grows with nearness (a
+    /// 0.4 m wave crest at 9 m, a 6 m pylon at 30 m), and with near objects rare in training it
+    /// took a weight against near, tall cells (ARCHITECTURE.md, the water margin).
+    #[serde(default = "uncapped_water_margin")]
+    pub water_margin_cap_px: f32,
     pub mean: Vec<f32>,
     pub std: Vec<f32>,
     pub weights: Vec<f32>,
@@ -150,6 +165,9 @@ impl HazardModel {
         if !(self.elevated_height_m.is_finite() && self.elevated_height_m > 0.0) {
             return Err("elevated_height_m must be > 0".into());
         }
+        if !(self.water_margin_cap_px.is_finite() && self.water_margin_cap_px > 0.0) {
+            return Err("water_margin_cap_px must be > 0".into());
+        }
         Ok(())
     }
 
@@ -168,7 +186,12 @@ impl HazardModel {
 
     /// Fits a model by full-batch gradient descent on the class-weighted log loss with a small L2
     /// penalty. Deterministic: same samples in the same order give the same model.
-    pub fn fit(samples: &[(Features, bool)], elevated_height_m: f32, iterations: usize) -> Self {
+    pub fn fit(
+        samples: &[(Features, bool)],
+        elevated_height_m: f32,
+        water_margin_cap_px: f32,
+        iterations: usize,
+    ) -> Self {
         let n = samples.len().max(1) as f64;
         let mut mean = [0f64; N_FEATURES];
         let mut var = [0f64; N_FEATURES];
@@ -223,6 +246,7 @@ impl HazardModel {
             version: MODEL_VERSION,
             features: FEATURES.iter().map(|s| s.to_string()).collect(),
             elevated_height_m,
+            water_margin_cap_px,
             mean: mean.iter().map(|v| *v as f32).collect(),
             std: std.iter().map(|v| *v as f32).collect(),
             weights: w.iter().map(|v| *v as f32).collect(),
@@ -246,7 +270,7 @@ mod tests {
             x[5] = (k % 7) as f32 * 0.1;
             samples.push((x, h > 1.5));
         }
-        let m = HazardModel::fit(&samples, 0.3, 2000);
+        let m = HazardModel::fit(&samples, 0.3, 4.0, 2000);
         m.validate().unwrap();
         let mut lo = [0f32; N_FEATURES];
         lo[0] = 0.5;
@@ -254,6 +278,25 @@ mod tests {
         hi[0] = 3.0;
         assert!(m.probability(&lo) < 0.1, "{}", m.probability(&lo));
         assert!(m.probability(&hi) > 0.9, "{}", m.probability(&hi));
+    }
+
+    #[test]
+    fn a_model_file_without_a_margin_cap_keeps_the_features_it_was_trained_on() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        let m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 4.0, 1);
+        let mut json: serde_json::Value = serde_json::to_value(&m).unwrap();
+        json.as_object_mut().unwrap().remove("water_margin_cap_px");
+        std::fs::write(&path, json.to_string()).unwrap();
+        let loaded = HazardModel::load(&path).unwrap();
+        assert_eq!(loaded.water_margin_cap_px, UNCAPPED_WATER_MARGIN_PX);
+        m.save(&path).unwrap();
+        assert_eq!(HazardModel::load(&path).unwrap().water_margin_cap_px, 4.0);
+        let mut bad = m.clone();
+        bad.water_margin_cap_px = 0.0;
+        bad.save(&path).unwrap();
+        let e = HazardModel::load(&path).unwrap_err().to_string();
+        assert!(e.contains("water_margin_cap_px"), "{e}");
     }
 
     #[test]
@@ -269,12 +312,12 @@ mod tests {
             HazardModel::load(&path),
             Err(ModelError::Parse { .. })
         ));
-        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 1);
+        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 4.0, 1);
         m.weights.pop();
         m.save(&path).unwrap();
         let e = HazardModel::load(&path).unwrap_err().to_string();
         assert!(e.contains("weights"), "{e}");
-        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 1);
+        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 4.0, 1);
         m.features[0] = "height".into();
         m.save(&path).unwrap();
         assert!(HazardModel::load(&path).is_err());

@@ -64,6 +64,11 @@ pub struct TrainArgs {
     /// Points higher than this above the water are elevated (m).
     #[arg(long, default_value_t = 0.3)]
     pub elevated_height: f32,
+    /// Cap of the `water_margin_px` feature (px; see `HazardModel::water_margin_cap_px`). The
+    /// committed model's is the old fixed cap; 4 with `harbour_piles` among the training
+    /// scenarios was tried (ARCHITECTURE.md, the water margin).
+    #[arg(long, default_value_t = crate::model::UNCAPPED_WATER_MARGIN_PX)]
+    pub water_margin_cap: f32,
     /// Also print the mean features of hits, false alarms and misses per held-out scenario.
     #[arg(long)]
     pub verbose: bool,
@@ -478,7 +483,12 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios"));
     let config = mapper_config(args.width);
     // Features do not depend on the model's weights; a neutral one serves for collection.
-    let neutral = HazardModel::fit(&[([0.0; N_FEATURES], false)], args.elevated_height, 0);
+    let neutral = HazardModel::fit(
+        &[([0.0; N_FEATURES], false)],
+        args.elevated_height,
+        args.water_margin_cap,
+        0,
+    );
     let mut train = Vec::new();
     for name in &args.train {
         let t = Instant::now();
@@ -516,7 +526,12 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     if !fit_set.iter().any(|(_, y)| *y) {
         bail!("no hazard cells in the training scenarios");
     }
-    let mut model = HazardModel::fit(&fit_set, args.elevated_height, args.iterations);
+    let mut model = HazardModel::fit(
+        &fit_set,
+        args.elevated_height,
+        args.water_margin_cap,
+        args.iterations,
+    );
     // Balanced class weights shift probabilities towards hazard; move the bias to where the
     // training F1 is best at the 0.5 threshold (a deterministic scan).
     let base = model.bias;

@@ -15,6 +15,7 @@ fn model() -> HazardModel {
             .map(|s| s.to_string())
             .collect(),
         elevated_height_m: 0.3,
+        water_margin_cap_px: 4.0,
         mean: vec![0.0; N_FEATURES],
         std: vec![1.0; N_FEATURES],
         weights,
