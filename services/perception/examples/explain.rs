@@ -37,7 +37,12 @@ struct Args {
     /// A recording with disparity images and INS samples (`usv eval --record`).
     recording: PathBuf,
     /// ENU point (m) whose cells to explain: `x,y`.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        allow_hyphen_values = true
+    )]
     at: Vec<f64>,
     /// Cells whose centre lies this close to the point (m).
     #[arg(long, default_value_t = 2.0)]
