@@ -96,7 +96,11 @@ fn main() -> anyhow::Result<()> {
         else {
             continue;
         };
-        if t < args.from || t > args.to {
+        // Frames before `--from` still build the evidence memory; none after `--to` matters.
+        if t > args.to {
+            break;
+        }
+        if t < args.from {
             continue;
         }
         let vessel = map.vessel.position;
@@ -117,15 +121,9 @@ fn main() -> anyhow::Result<()> {
                 continue;
             }
             let range = (p[0] - vessel[0]).hypot(p[1] - vessel[1]);
-            let terms = c
-                .features
-                .iter()
-                .zip(&model.mean)
-                .zip(&model.std)
-                .zip(&model.weights);
-            let parts: Vec<String> = terms
-                .zip(SHORT_NAMES)
-                .map(|((((x, m), s), w), name)| format!("{name} {x:.2} ({:+.2})", w * (x - m) / s))
+            let terms = model.terms(&c.features);
+            let parts: Vec<String> = (c.features.iter().zip(terms).zip(SHORT_NAMES))
+                .map(|((x, t), name)| format!("{name} {x:.2} ({t:+.2})"))
                 .collect();
             println!(
                 "  ({:.1}, {:.1}) {range:.1} m p {:.2}{}: {}",

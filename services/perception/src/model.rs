@@ -171,11 +171,20 @@ impl HazardModel {
         Ok(())
     }
 
-    /// Log-odds of a hazard.
+    /// Each feature's term in the log-odds (its standardized value times its weight).
+    #[inline]
+    pub fn terms(&self, x: &Features) -> Features {
+        let mut t = [0.0; N_FEATURES];
+        for (i, t) in t.iter_mut().enumerate() {
+            *t = self.weights[i] * (x[i] - self.mean[i]) / self.std[i];
+        }
+        t
+    }
+
+    /// Log-odds of a hazard: the bias plus the features' terms.
     #[inline]
     pub fn logit(&self, x: &Features) -> f32 {
-        let terms = x.iter().zip(&self.mean).zip(&self.std).zip(&self.weights);
-        terms.fold(self.bias, |z, (((x, m), s), w)| z + w * (x - m) / s)
+        self.terms(x).iter().fold(self.bias, |z, t| z + t)
     }
 
     /// Hazard probability of a cell.
