@@ -79,6 +79,9 @@ pub struct ModelMetrics {
     pub test_recall: f64,
     pub train_precision: f64,
     pub train_recall: f64,
+    /// Features whose weights were held at >= 0 in the fit (`perception train --non-negative`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub non_negative: Vec<String>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -195,10 +198,16 @@ impl HazardModel {
 
     /// Fits a model by full-batch gradient descent on the class-weighted log loss with a small L2
     /// penalty. Deterministic: same samples in the same order give the same model.
+    ///
+    /// Features flagged in `non_negative` may only count towards hazard (their weight is projected
+    /// onto >= 0 after every step): correlated features otherwise let one of them carry a proxy
+    /// for what the training scenarios happen to share (a weight against `water_margin_px` that
+    /// stood for "near", see ARCHITECTURE.md, the water margin).
     pub fn fit(
         samples: &[(Features, bool)],
         elevated_height_m: f32,
         water_margin_cap_px: f32,
+        non_negative: &[bool; N_FEATURES],
         iterations: usize,
     ) -> Self {
         let n = samples.len().max(1) as f64;
@@ -248,6 +257,9 @@ impl HazardModel {
             }
             for i in 0..N_FEATURES {
                 w[i] -= rate * (gw[i] / n + l2 * w[i]);
+                if non_negative[i] {
+                    w[i] = w[i].max(0.0);
+                }
             }
             b -= rate * gb / n;
         }
@@ -279,7 +291,7 @@ mod tests {
             x[5] = (k % 7) as f32 * 0.1;
             samples.push((x, h > 1.5));
         }
-        let m = HazardModel::fit(&samples, 0.3, 4.0, 2000);
+        let m = HazardModel::fit(&samples, 0.3, 4.0, &[false; N_FEATURES], 2000);
         m.validate().unwrap();
         let mut lo = [0f32; N_FEATURES];
         lo[0] = 0.5;
@@ -290,10 +302,35 @@ mod tests {
     }
 
     #[test]
+    fn a_non_negative_feature_never_counts_against_hazard() {
+        // Hazard when feature 0 exceeds feature 1: a free fit weighs feature 1 against hazard.
+        let mut samples = Vec::new();
+        for k in 0..400 {
+            let mut x = [0f32; N_FEATURES];
+            x[0] = (k % 20) as f32 * 0.1;
+            x[1] = (k / 20) as f32 * 0.1;
+            samples.push((x, x[0] > x[1]));
+        }
+        let free = HazardModel::fit(&samples, 0.3, 4.0, &[false; N_FEATURES], 500);
+        assert!(free.weights[1] < -0.5, "{:?}", free.weights);
+        let mut non_negative = [false; N_FEATURES];
+        non_negative[1] = true;
+        let held = HazardModel::fit(&samples, 0.3, 4.0, &non_negative, 500);
+        assert!(held.weights[1] >= 0.0, "{:?}", held.weights);
+        assert!(held.weights[0] > 0.5, "{:?}", held.weights);
+    }
+
+    #[test]
     fn a_model_file_without_a_margin_cap_keeps_the_features_it_was_trained_on() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.json");
-        let m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 4.0, 1);
+        let m = HazardModel::fit(
+            &[([0.0; N_FEATURES], false)],
+            0.3,
+            4.0,
+            &[false; N_FEATURES],
+            1,
+        );
         let mut json: serde_json::Value = serde_json::to_value(&m).unwrap();
         json.as_object_mut().unwrap().remove("water_margin_cap_px");
         std::fs::write(&path, json.to_string()).unwrap();
@@ -321,12 +358,24 @@ mod tests {
             HazardModel::load(&path),
             Err(ModelError::Parse { .. })
         ));
-        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 4.0, 1);
+        let mut m = HazardModel::fit(
+            &[([0.0; N_FEATURES], false)],
+            0.3,
+            4.0,
+            &[false; N_FEATURES],
+            1,
+        );
         m.weights.pop();
         m.save(&path).unwrap();
         let e = HazardModel::load(&path).unwrap_err().to_string();
         assert!(e.contains("weights"), "{e}");
-        let mut m = HazardModel::fit(&[([0.0; N_FEATURES], false)], 0.3, 4.0, 1);
+        let mut m = HazardModel::fit(
+            &[([0.0; N_FEATURES], false)],
+            0.3,
+            4.0,
+            &[false; N_FEATURES],
+            1,
+        );
         m.features[0] = "height".into();
         m.save(&path).unwrap();
         assert!(HazardModel::load(&path).is_err());

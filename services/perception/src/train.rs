@@ -28,8 +28,12 @@ use stereo::pipeline::{FramePipeline, PlaneSearch};
 #[derive(clap::Args, Debug, Clone)]
 pub struct TrainArgs {
     /// Model file to write (JSON).
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required_unless_present = "evaluate")]
+    pub out: Option<PathBuf>,
+    /// Score this model file on the held-out scenarios instead of fitting one (nothing is
+    /// written): a model edited by hand, or one trained on another build, measured like a new one.
+    #[arg(long, conflicts_with = "out")]
+    pub evaluate: Option<PathBuf>,
     /// Scenarios to train on (names in the scenario directory).
     #[arg(
         long,
@@ -69,6 +73,10 @@ pub struct TrainArgs {
     /// scenarios was tried (ARCHITECTURE.md, the water margin).
     #[arg(long, default_value_t = crate::model::UNCAPPED_WATER_MARGIN_PX)]
     pub water_margin_cap: f32,
+    /// Features whose weights may only count towards hazard (names from `FEATURES`, comma
+    /// separated; see `HazardModel::fit`).
+    #[arg(long, value_delimiter = ',')]
+    pub non_negative: Vec<String>,
     /// Also print the mean features of hits, false alarms and misses per held-out scenario.
     #[arg(long)]
     pub verbose: bool,
@@ -475,24 +483,32 @@ fn f1(model: &HazardModel, samples: &[CellSample]) -> f64 {
     }
 }
 
-pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
-    let started = Instant::now();
-    let dir = args
-        .scenarios
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios"));
-    let config = mapper_config(args.width);
+/// What the fit saw: training cells and the model's precision and recall on them.
+struct Trained {
+    cells: usize,
+    precision: f64,
+    recall: f64,
+}
+
+/// Maps the training scenarios and fits the classifier on their labelled cells.
+fn fit_on_scenarios(
+    args: &TrainArgs,
+    dir: &Path,
+    config: &HazardConfig,
+) -> anyhow::Result<(HazardModel, Trained)> {
     // Features do not depend on the model's weights; a neutral one serves for collection.
     let neutral = HazardModel::fit(
         &[([0.0; N_FEATURES], false)],
         args.elevated_height,
         args.water_margin_cap,
+        &[false; N_FEATURES],
         0,
     );
+    let non_negative = feature_flags(&args.non_negative)?;
     let mut train = Vec::new();
     for name in &args.train {
         let t = Instant::now();
-        let frames = render_scenario(&scenario_path(&dir, name), args)?;
+        let frames = render_scenario(&scenario_path(dir, name), args)?;
         let mut mapper =
             HazardMapper::new(config.clone(), neutral.clone()).map_err(|e| anyhow::anyhow!(e))?;
         let mut skipped = 0;
@@ -505,17 +521,6 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
             t.elapsed().as_secs_f64()
         );
         train.extend(cells);
-    }
-    let mut test_frames = Vec::new();
-    for name in &args.test {
-        let t = Instant::now();
-        let frames = render_scenario(&scenario_path(&dir, name), args)?;
-        println!(
-            "test {name}: {} frames ({:.1} s)",
-            frames.len(),
-            t.elapsed().as_secs_f64()
-        );
-        test_frames.push((name.clone(), frames));
     }
     // Isolated cells are decided by the spatial rule, not the classifier.
     let fit_set: Vec<(Features, bool)> = train
@@ -530,6 +535,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         &fit_set,
         args.elevated_height,
         args.water_margin_cap,
+        &non_negative,
         args.iterations,
     );
     // Balanced class weights shift probabilities towards hazard; move the bias to where the
@@ -544,14 +550,45 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         }
     }
     model.bias = best.1;
-    let (train_p, train_r, _) = precision_recall(&model, &train);
+    let (precision, recall, _) = precision_recall(&model, &train);
     println!(
-        "training set: {} cells, precision {:.3}, recall {:.3} (bias shift {:+.1})",
+        "training set: {} cells, precision {precision:.3}, recall {recall:.3} (bias shift {:+.1})",
         train.len(),
-        train_p,
-        train_r,
         model.bias - base
     );
+    let trained = Trained {
+        cells: train.len(),
+        precision,
+        recall,
+    };
+    Ok((model, trained))
+}
+
+pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let dir = args
+        .scenarios
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios"));
+    let config = mapper_config(args.width);
+    let (mut model, trained) = match &args.evaluate {
+        Some(path) => (HazardModel::load(path)?, None),
+        None => {
+            let (model, trained) = fit_on_scenarios(args, &dir, &config)?;
+            (model, Some(trained))
+        }
+    };
+    let mut test_frames = Vec::new();
+    for name in &args.test {
+        let t = Instant::now();
+        let frames = render_scenario(&scenario_path(&dir, name), args)?;
+        println!(
+            "test {name}: {} frames ({:.1} s)",
+            frames.len(),
+            t.elapsed().as_secs_f64()
+        );
+        test_frames.push((name.clone(), frames));
+    }
 
     let mut test_cells = Vec::new();
     for (name, frames) in &test_frames {
@@ -578,28 +615,48 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     }
     let (test_p, test_r, _) = precision_recall(&model, &test_cells);
     println!("held out total: precision {test_p:.3}, recall {test_r:.3}");
-    model.metrics = ModelMetrics {
-        train_scenarios: args.train.clone(),
-        test_scenarios: args.test.clone(),
-        train_cells: train.len(),
-        test_cells: test_cells.len(),
-        test_precision: round3(test_p),
-        test_recall: round3(test_r),
-        train_precision: round3(train_p),
-        train_recall: round3(train_r),
-    };
     for (name, w) in crate::model::FEATURES.iter().zip(&model.weights) {
         println!("  weight {name:>18}: {w:+.3}");
     }
+    let (Some(trained), Some(out)) = (trained, &args.out) else {
+        // An evaluated model file is left as it is.
+        return Ok(());
+    };
+    model.metrics = ModelMetrics {
+        train_scenarios: args.train.clone(),
+        test_scenarios: args.test.clone(),
+        train_cells: trained.cells,
+        test_cells: test_cells.len(),
+        test_precision: round3(test_p),
+        test_recall: round3(test_r),
+        train_precision: round3(trained.precision),
+        train_recall: round3(trained.recall),
+        non_negative: args.non_negative.clone(),
+    };
     model
-        .save(&args.out)
-        .with_context(|| format!("writing {}", args.out.display()))?;
+        .save(out)
+        .with_context(|| format!("writing {}", out.display()))?;
     println!(
         "wrote {} in {:.1} s",
-        args.out.display(),
+        out.display(),
         started.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// Flags the named features; an unknown name is an error listing the known ones.
+fn feature_flags(names: &[String]) -> anyhow::Result<[bool; N_FEATURES]> {
+    let mut flags = [false; N_FEATURES];
+    for name in names {
+        let Some(i) = crate::model::FEATURES.iter().position(|f| f == name) else {
+            bail!(
+                "unknown feature {name:?}; the features are {}",
+                crate::model::FEATURES.join(", ")
+            );
+        };
+        flags[i] = true;
+    }
+    Ok(flags)
 }
 
 fn round3(v: f64) -> f64 {
