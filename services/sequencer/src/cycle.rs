@@ -619,7 +619,9 @@ impl Sequencer {
                     .step_with_floor(cfg, own, &g, dt, cfg.brake_throttle_pct),
             );
         }
-        // Brake to a stop at once and turn away from the side with more close obstacles.
+        // Brake to a stop at once and turn away from the side with more close obstacles, but
+        // never to port of a boat met head-on: the boat still runs on while it brakes, and on
+        // cluttered_river a port turn here took it across the bow of the boat it was meeting.
         let throttle = if own.speed_mps > BRAKE_UNTIL_MPS {
             self.controller.cap_throttle(cfg.brake_throttle_pct);
             cfg.brake_throttle_pct
@@ -627,7 +629,7 @@ impl Sequencer {
             self.controller.ease_throttle(0.0);
             0.0
         };
-        let away = if blocked.port > blocked.starboard {
+        let away = if blocked.keep_starboard || blocked.port > blocked.starboard {
             -cfg.max_rudder_rad
         } else {
             cfg.max_rudder_rad

@@ -235,6 +235,38 @@ fn every_arc_blocked_close_in_brakes_and_turns_away() {
 }
 
 #[test]
+fn every_arc_blocked_close_in_with_a_boat_met_head_on_turns_to_starboard() {
+    // As above (more obstacles to starboard), with a boat coming west down our lane 40 m ahead:
+    // braking, the boat still runs on, so it turns to starboard, away from the boat's course.
+    let hard_over = |head_on_max_course_deg: f64| {
+        let mut cfg = Config::default();
+        cfg.arcs.head_on_max_course_deg = head_on_max_course_deg;
+        let mut seq = Sequencer::new(cfg).unwrap();
+        seq.load_mission(EAST).unwrap();
+        let mut obstacles = wall(6.0);
+        obstacles.extend((0..20).map(|i| (3.0, -3.0 - i as f64 * 0.5)));
+        let mut cmd = None;
+        for k in 1..=40u64 {
+            let t = k * 100 * MS;
+            feed(&mut seq, t, &obstacles);
+            seq.on_contacts(&boat_contacts(t, [40.0, 3.0], [-6.0, 0.0]));
+            let (c, status) = seq.cycle("test");
+            assert_eq!(c.mode, command_mode::BLOCKED);
+            assert_eq!(status.chosen_arc, -1);
+            cmd = Some(c);
+        }
+        cmd.unwrap().rudder_rad
+    };
+    let without_rule = hard_over(0.0);
+    assert!(
+        without_rule > 0.5,
+        "without the rule, to port: {without_rule}"
+    );
+    let with_rule = hard_over(30.0);
+    assert!(with_rule < -0.5, "head-on, to starboard: {with_rule}");
+}
+
+#[test]
 fn watchdog_stops_on_stale_ins_and_recovers() {
     let mut seq = started(EAST);
     for k in 1..=20 {
