@@ -82,6 +82,11 @@ pub struct ModelMetrics {
     /// Features whose weights were held at >= 0 in the fit (`perception train --non-negative`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub non_negative: Vec<String>,
+    /// The `water_margin_px` cap the weights were fitted with, where the model applies another
+    /// (`perception train --evaluate MODEL --water-margin-cap PX --out F`). The test figures are
+    /// then the applied cap's, the training figures the fit's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted_water_margin_cap_px: Option<f32>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -92,11 +97,13 @@ pub struct HazardModel {
     pub features: Vec<String>,
     /// Points higher than this above the water count as elevated (m); part of the features.
     pub elevated_height_m: f32,
-    /// `water_margin_px` is capped at this (px), as in training. The feature tells the "walls" a
-    /// pixel or two of mismatch builds from far water apart from real surfaces; beyond a few
-    /// pixels it says no more than "not such a wall", yet uncapped it grows with nearness (a
-    /// 0.4 m wave crest at 9 m, a 6 m pylon at 30 m), and with near objects rare in training it
-    /// took a weight against near, tall cells (ARCHITECTURE.md, the water margin).
+    /// `water_margin_px` is capped at this (px). The feature tells the "walls" a pixel or two of
+    /// mismatch builds from far water apart from real surfaces; beyond a few pixels it says no
+    /// more than "not such a wall", yet uncapped it grows with nearness (a 0.4 m wave crest at
+    /// 9 m, a 6 m pylon at 30 m), and with near objects rare in training it took a weight against
+    /// near, tall cells (ARCHITECTURE.md, the water margin). The cap may be lower than the one the
+    /// weights were fitted with ([`ModelMetrics::fitted_water_margin_cap_px`]): the weights then
+    /// hold where the training data had the feature, and its extrapolation beyond the cap is cut.
     #[serde(default = "uncapped_water_margin")]
     pub water_margin_cap_px: f32,
     pub mean: Vec<f32>,
@@ -194,6 +201,19 @@ impl HazardModel {
     #[inline]
     pub fn probability(&self, x: &Features) -> f32 {
         1.0 / (1.0 + (-self.logit(x)).exp())
+    }
+
+    /// Applies another `water_margin_px` cap to the fitted weights, remembering the cap they were
+    /// fitted with (the first one, if applied more than once).
+    pub fn apply_water_margin_cap(&mut self, cap_px: f32) -> Result<(), String> {
+        if !(cap_px.is_finite() && cap_px > 0.0) {
+            return Err(format!("cap {cap_px} px must be > 0"));
+        }
+        if cap_px != self.water_margin_cap_px && self.metrics.fitted_water_margin_cap_px.is_none() {
+            self.metrics.fitted_water_margin_cap_px = Some(self.water_margin_cap_px);
+        }
+        self.water_margin_cap_px = cap_px;
+        Ok(())
     }
 
     /// Fits a model by full-batch gradient descent on the class-weighted log loss with a small L2
@@ -318,6 +338,31 @@ mod tests {
         let held = HazardModel::fit(&samples, 0.3, 4.0, &non_negative, 500);
         assert!(held.weights[1] >= 0.0, "{:?}", held.weights);
         assert!(held.weights[0] > 0.5, "{:?}", held.weights);
+    }
+
+    #[test]
+    fn a_cap_applied_after_the_fit_keeps_the_fitted_one_on_record() {
+        let mut m = HazardModel::fit(
+            &[([0.0; N_FEATURES], false)],
+            0.3,
+            40.0,
+            &[false; N_FEATURES],
+            1,
+        );
+        m.apply_water_margin_cap(10.0).unwrap();
+        m.apply_water_margin_cap(12.0).unwrap();
+        assert_eq!(m.water_margin_cap_px, 12.0);
+        assert_eq!(m.metrics.fitted_water_margin_cap_px, Some(40.0));
+        assert!(m.apply_water_margin_cap(0.0).is_err());
+        assert!(m.apply_water_margin_cap(f32::NAN).is_err());
+        assert_eq!(m.water_margin_cap_px, 12.0);
+        // The record survives a save and a load.
+        let path = std::env::temp_dir().join(format!("usv-capped-{}.json", std::process::id()));
+        m.save(&path).unwrap();
+        let loaded = HazardModel::load(&path).unwrap();
+        std::fs::remove_file(&path).ok();
+        assert_eq!(loaded.metrics.fitted_water_margin_cap_px, Some(40.0));
+        assert_eq!(loaded.water_margin_cap_px, 12.0);
     }
 
     #[test]

@@ -30,9 +30,10 @@ pub struct TrainArgs {
     /// Model file to write (JSON).
     #[arg(long, required_unless_present = "evaluate")]
     pub out: Option<PathBuf>,
-    /// Score this model file on the held-out scenarios instead of fitting one (nothing is
-    /// written): a model edited by hand, or one trained on another build, measured like a new one.
-    #[arg(long, conflicts_with = "out")]
+    /// Score this model file on the held-out scenarios instead of fitting one: a model trained on
+    /// another build, or given another `--water-margin-cap`, measured like a new one (written to
+    /// `--out` with those figures if given).
+    #[arg(long)]
     pub evaluate: Option<PathBuf>,
     /// Scenarios to train on (names in the scenario directory).
     #[arg(
@@ -68,11 +69,11 @@ pub struct TrainArgs {
     /// Points higher than this above the water are elevated (m).
     #[arg(long, default_value_t = 0.3)]
     pub elevated_height: f32,
-    /// Cap of the `water_margin_px` feature (px; see `HazardModel::water_margin_cap_px`). The
-    /// committed model's is the old fixed cap; 4 with `harbour_piles` among the training
-    /// scenarios was tried (ARCHITECTURE.md, the water margin).
-    #[arg(long, default_value_t = crate::model::UNCAPPED_WATER_MARGIN_PX)]
-    pub water_margin_cap: f32,
+    /// Cap of the `water_margin_px` feature (px; see `HazardModel::water_margin_cap_px`; default
+    /// 40, the committed model's fit). With `--evaluate`, the cap applied to that model's weights
+    /// instead of its own (with `--out`, written with the figures it scores).
+    #[arg(long)]
+    pub water_margin_cap: Option<f32>,
     /// Features whose weights may only count towards hazard (names from `FEATURES`, comma
     /// separated; see `HazardModel::fit`).
     #[arg(long, value_delimiter = ',')]
@@ -83,6 +84,13 @@ pub struct TrainArgs {
     /// Gradient-descent iterations.
     #[arg(long, default_value_t = 1500)]
     pub iterations: usize,
+}
+
+impl TrainArgs {
+    fn fit_water_margin_cap(&self) -> f32 {
+        self.water_margin_cap
+            .unwrap_or(crate::model::UNCAPPED_WATER_MARGIN_PX)
+    }
 }
 
 /// Heads rendered: the two Hammerhead heads.
@@ -500,7 +508,7 @@ fn fit_on_scenarios(
     let neutral = HazardModel::fit(
         &[([0.0; N_FEATURES], false)],
         args.elevated_height,
-        args.water_margin_cap,
+        args.fit_water_margin_cap(),
         &[false; N_FEATURES],
         0,
     );
@@ -534,7 +542,7 @@ fn fit_on_scenarios(
     let mut model = HazardModel::fit(
         &fit_set,
         args.elevated_height,
-        args.water_margin_cap,
+        args.fit_water_margin_cap(),
         &non_negative,
         args.iterations,
     );
@@ -572,7 +580,15 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../sim/scenarios"));
     let config = mapper_config(args.width);
     let (mut model, trained) = match &args.evaluate {
-        Some(path) => (HazardModel::load(path)?, None),
+        Some(path) => {
+            let mut model = HazardModel::load(path)?;
+            if let Some(cap) = args.water_margin_cap {
+                model
+                    .apply_water_margin_cap(cap)
+                    .map_err(|e| anyhow::anyhow!("--water-margin-cap: {e}"))?;
+            }
+            (model, None)
+        }
         None => {
             let (model, trained) = fit_on_scenarios(args, &dir, &config)?;
             (model, Some(trained))
@@ -618,21 +634,32 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     for (name, w) in crate::model::FEATURES.iter().zip(&model.weights) {
         println!("  weight {name:>18}: {w:+.3}");
     }
-    let (Some(trained), Some(out)) = (trained, &args.out) else {
-        // An evaluated model file is left as it is.
+    let Some(out) = &args.out else {
         return Ok(());
     };
-    model.metrics = ModelMetrics {
-        train_scenarios: args.train.clone(),
-        test_scenarios: args.test.clone(),
-        train_cells: trained.cells,
-        test_cells: test_cells.len(),
-        test_precision: round3(test_p),
-        test_recall: round3(test_r),
-        train_precision: round3(trained.precision),
-        train_recall: round3(trained.recall),
-        non_negative: args.non_negative.clone(),
-    };
+    match trained {
+        Some(trained) => {
+            model.metrics = ModelMetrics {
+                train_scenarios: args.train.clone(),
+                test_scenarios: args.test.clone(),
+                train_cells: trained.cells,
+                test_cells: test_cells.len(),
+                test_precision: round3(test_p),
+                test_recall: round3(test_r),
+                train_precision: round3(trained.precision),
+                train_recall: round3(trained.recall),
+                non_negative: args.non_negative.clone(),
+                fitted_water_margin_cap_px: None,
+            }
+        }
+        None => {
+            // An evaluated model keeps its fit's figures and takes the held-out ones measured now.
+            model.metrics.test_scenarios = args.test.clone();
+            model.metrics.test_cells = test_cells.len();
+            model.metrics.test_precision = round3(test_p);
+            model.metrics.test_recall = round3(test_r);
+        }
+    }
     model
         .save(out)
         .with_context(|| format!("writing {}", out.display()))?;
