@@ -282,7 +282,7 @@ impl Arc {
 
 /// Blocked arcs of one cycle, and on which side the close hazards lie (to turn away when all are
 /// blocked close in).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Blocked {
     /// Bit i set: arc i is blocked somewhere along its length.
     pub mask: u128,
@@ -294,8 +294,9 @@ pub struct Blocked {
     /// Hazards blocking an arc within `near_m`, to port (y > 0) and to starboard.
     pub port: u32,
     pub starboard: u32,
-    /// A boat meets us head-on: keep to starboard (see [`ArcConfig::head_on_max_course_deg`]).
-    pub keep_starboard: bool,
+    /// A boat meets us head-on: keep to starboard of this world course (rad, ENU), the
+    /// reciprocal of the boat's (see [`ArcConfig::head_on_max_course_deg`]).
+    pub keep_starboard: Option<f64>,
 }
 
 impl Blocked {
@@ -306,7 +307,7 @@ impl Blocked {
         self.near |= other.near;
         self.port += other.port;
         self.starboard += other.starboard;
-        self.keep_starboard |= other.keep_starboard;
+        self.keep_starboard = self.keep_starboard.or(other.keep_starboard);
     }
 }
 
@@ -517,6 +518,15 @@ impl ArcSet {
     /// The arcs that turn to port (direction left of straight ahead).
     pub fn to_port(&self) -> u128 {
         self.port_mask
+    }
+
+    /// The arcs that take the boat to port of `bearing` (body frame, rad).
+    pub fn to_port_of(&self, bearing: f64) -> u128 {
+        self.arcs
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| angle_diff(a.direction, bearing) > 0.0)
+            .fold(0, |mask, (i, _)| mask | 1 << i)
     }
 
     /// Mask with one bit per arc.

@@ -499,11 +499,12 @@ impl Sequencer {
     /// reciprocal, ahead within `head_on_range_m` and closing to within `fast_contact_cpa_m`. A boat
     /// once met stays met until it is abeam or the range opens: turning to starboard opens the
     /// closest approach, and dropping the rule then would turn us back across its bow.
-    fn meets_head_on(&mut self, target: Option<FollowedTarget>, own: &OwnState) -> bool {
+    /// Returns the reciprocal of the nearest such boat's course (rad, ENU).
+    fn meets_head_on(&mut self, target: Option<FollowedTarget>, own: &OwnState) -> Option<f64> {
         let cfg = self.arcs.config();
         if target.is_some() || cfg.head_on_max_course_deg <= 0.0 {
             self.head_on.clear();
-            return false;
+            return None;
         }
         let contacts = self.contacts.as_slice();
         self.head_on.retain(|&id| {
@@ -539,7 +540,16 @@ impl Sequencer {
                 self.head_on.push(c.id);
             }
         }
-        !self.head_on.is_empty()
+        contacts
+            .iter()
+            .filter(|c| self.head_on.contains(&c.id))
+            .min_by(|a, b| {
+                let range = |c: &Contact| {
+                    (c.position[0] - own.position[0]).hypot(c.position[1] - own.position[1])
+                };
+                range(a).total_cmp(&range(b))
+            })
+            .map(|c| c.velocity[1].atan2(c.velocity[0]) + std::f64::consts::PI)
     }
 
     /// Avoidance on top of the behaviour's guidance: the free arc closest to the desired course.
@@ -562,10 +572,12 @@ impl Sequencer {
             );
         }
         let mut blocked = blocked;
-        if blocked.keep_starboard {
-            // No turn to port across the bow of a boat met head-on: such arcs count as blocked,
-            // close in too unless that leaves no arc at all (then braking would be worse).
-            let port = self.arcs.to_port();
+        if let Some(reciprocal) = blocked.keep_starboard {
+            // No turn to port across the bow of a boat met head-on, nor a course to port of the
+            // reciprocal of its own (a boat already turned towards its next waypoint when the
+            // meeting began would hold that course into the other's lane): such arcs count as
+            // blocked, close in too unless that leaves no arc at all (then braking would be worse).
+            let port = self.arcs.to_port() | self.arcs.to_port_of(angle_diff(reciprocal, own.yaw));
             blocked.mask |= port;
             if (blocked.near | port) & self.arcs.all() != self.arcs.all() {
                 blocked.near |= port;
@@ -629,7 +641,7 @@ impl Sequencer {
             self.controller.ease_throttle(0.0);
             0.0
         };
-        let away = if blocked.keep_starboard || blocked.port > blocked.starboard {
+        let away = if blocked.keep_starboard.is_some() || blocked.port > blocked.starboard {
             -cfg.max_rudder_rad
         } else {
             cfg.max_rudder_rad

@@ -595,6 +595,38 @@ fn a_boat_met_head_on_is_passed_port_to_port_even_with_the_waypoint_to_port() {
 }
 
 #[test]
+fn a_boat_met_head_on_while_already_turned_to_port_makes_us_turn_to_starboard_of_its_reciprocal() {
+    // Heading 20 deg to port of east, toward a waypoint beyond a bend, when a boat 60 m ahead comes
+    // west at 6 m/s: holding this course (no port turn) would still cross its lane. The arcs that
+    // end to port of east, the reciprocal of its course, count as blocked: we turn 20 deg or more
+    // to starboard.
+    const NORTH_EAST: &str =
+        "[[step]]\ntype = \"goto\"\nwaypoints = [[300.0, 120.0]]\nspeed_mps = 5.0\n";
+    let yaw = 20f64.to_radians();
+    let mut seq = Sequencer::new(Config::default()).unwrap();
+    seq.load_mission(NORTH_EAST).unwrap();
+    let mut last = None;
+    for k in 1..=5u64 {
+        let t = k * 100 * MS;
+        seq.on_ins(&ins(t, yaw, 5.0)).unwrap();
+        let (h, c) = map(t, &[]);
+        seq.on_map(&h, &c).unwrap();
+        seq.on_contacts(&boat_contacts(t, [60.0, 15.0], [-6.0, 0.0]));
+        last = Some(seq.cycle("test"));
+    }
+    let (cmd, status) = last.unwrap();
+    assert_eq!(cmd.mode, command_mode::NAVIGATING);
+    let direction = seq.arcs().arcs()[status.chosen_arc as usize].direction;
+    assert!(
+        direction <= -yaw + 0.02,
+        "arc {} turns {:.1} deg",
+        status.chosen_arc,
+        direction.to_degrees()
+    );
+    assert!(cmd.rudder_rad < 0.0, "rudder {}", cmd.rudder_rad);
+}
+
+#[test]
 fn close_behind_a_followed_boat_only_the_water_up_to_the_look_ahead_is_judged() {
     // Following boat #3 heading east at 5 m/s, 20 m ahead. A hazard cell dead ahead 37 m out and a
     // boat-class contact 38 m out beside the target's track: beyond the follow look-ahead (25 m,
