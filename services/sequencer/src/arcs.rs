@@ -87,6 +87,7 @@ pub struct ArcConfig {
     /// follow_boat's log a 5 m "boat" born 17 m off the starboard bow lived 2.6 s and, inflated by
     /// its birth covariance, held the own boat inside its disc: every arc blocked, the boat braked
     /// and turned hard away and lost its target for 45 s. The map still blocks what is real.
+    /// It is also the least range at which a boat is first met head-on.
     pub late_birth_m: f64,
     pub late_birth_min_age_s: f64,
     /// A contact the classifier calls a channel marker that moves faster than this (m/s) once it is

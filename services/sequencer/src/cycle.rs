@@ -527,8 +527,12 @@ impl Sequencer {
             }
             let course = c.velocity[1].atan2(c.velocity[0]);
             let range = (c.position[0] - own.position[0]).hypot(c.position[1] - own.position[1]);
+            // A boat first met closer than `late_birth_m` is no meeting to plan for: a real one is
+            // confirmed far out, while on cluttered_river bank fragments 11-12 m off, seen moving
+            // at a boat's speed, held the boat braking and turning into that bank for 45 s.
             if angle_diff(course, own.yaw + std::f64::consts::PI).abs() <= max_course
                 && range <= cfg.head_on_range_m
+                && range >= cfg.late_birth_m
                 && ahead_and_closing(c, own)
                 && closest_approach(c, own, cfg.length_m) < cfg.fast_contact_cpa_m
             {

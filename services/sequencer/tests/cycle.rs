@@ -238,7 +238,7 @@ fn every_arc_blocked_close_in_brakes_and_turns_away() {
 fn every_arc_blocked_close_in_with_a_boat_met_head_on_turns_to_starboard() {
     // As above (more obstacles to starboard), with a boat coming west down our lane 40 m ahead:
     // braking, the boat still runs on, so it turns to starboard, away from the boat's course.
-    let hard_over = |head_on_max_course_deg: f64| {
+    let hard_over = |head_on_max_course_deg: f64, boat: [f64; 2]| {
         let mut cfg = Config::default();
         cfg.arcs.head_on_max_course_deg = head_on_max_course_deg;
         let mut seq = Sequencer::new(cfg).unwrap();
@@ -249,7 +249,7 @@ fn every_arc_blocked_close_in_with_a_boat_met_head_on_turns_to_starboard() {
         for k in 1..=40u64 {
             let t = k * 100 * MS;
             feed(&mut seq, t, &obstacles);
-            seq.on_contacts(&boat_contacts(t, [40.0, 3.0], [-6.0, 0.0]));
+            seq.on_contacts(&boat_contacts(t, boat, [-6.0, 0.0]));
             let (c, status) = seq.cycle("test");
             assert_eq!(c.mode, command_mode::BLOCKED);
             assert_eq!(status.chosen_arc, -1);
@@ -257,13 +257,17 @@ fn every_arc_blocked_close_in_with_a_boat_met_head_on_turns_to_starboard() {
         }
         cmd.unwrap().rudder_rad
     };
-    let without_rule = hard_over(0.0);
+    let without_rule = hard_over(0.0, [40.0, 3.0]);
     assert!(
         without_rule > 0.5,
         "without the rule, to port: {without_rule}"
     );
-    let with_rule = hard_over(30.0);
+    let with_rule = hard_over(30.0, [40.0, 3.0]);
     assert!(with_rule < -0.5, "head-on, to starboard: {with_rule}");
+    // A "boat" first met 12 m off (`arcs.late_birth_m` is 20 m) is no meeting: away from the
+    // obstacles, to port.
+    let too_close = hard_over(30.0, [12.0, 3.0]);
+    assert!(too_close > 0.5, "met 12 m off, to port: {too_close}");
 }
 
 #[test]
