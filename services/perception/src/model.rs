@@ -301,6 +301,17 @@ impl HazardModel {
 mod tests {
     use super::*;
 
+    /// A model fitted to nothing, with this `water_margin_px` cap.
+    fn blank(cap_px: f32) -> HazardModel {
+        HazardModel::fit(
+            &[([0.0; N_FEATURES], false)],
+            0.3,
+            cap_px,
+            &[false; N_FEATURES],
+            1,
+        )
+    }
+
     #[test]
     fn fit_separates_a_threshold_on_one_feature() {
         let mut samples = Vec::new();
@@ -342,13 +353,7 @@ mod tests {
 
     #[test]
     fn a_cap_applied_after_the_fit_keeps_the_fitted_one_on_record() {
-        let mut m = HazardModel::fit(
-            &[([0.0; N_FEATURES], false)],
-            0.3,
-            40.0,
-            &[false; N_FEATURES],
-            1,
-        );
+        let mut m = blank(40.0);
         m.apply_water_margin_cap(10.0).unwrap();
         m.apply_water_margin_cap(12.0).unwrap();
         assert_eq!(m.water_margin_cap_px, 12.0);
@@ -369,13 +374,7 @@ mod tests {
     fn a_model_file_without_a_margin_cap_keeps_the_features_it_was_trained_on() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.json");
-        let m = HazardModel::fit(
-            &[([0.0; N_FEATURES], false)],
-            0.3,
-            4.0,
-            &[false; N_FEATURES],
-            1,
-        );
+        let m = blank(4.0);
         let mut json: serde_json::Value = serde_json::to_value(&m).unwrap();
         json.as_object_mut().unwrap().remove("water_margin_cap_px");
         std::fs::write(&path, json.to_string()).unwrap();
@@ -403,24 +402,12 @@ mod tests {
             HazardModel::load(&path),
             Err(ModelError::Parse { .. })
         ));
-        let mut m = HazardModel::fit(
-            &[([0.0; N_FEATURES], false)],
-            0.3,
-            4.0,
-            &[false; N_FEATURES],
-            1,
-        );
+        let mut m = blank(4.0);
         m.weights.pop();
         m.save(&path).unwrap();
         let e = HazardModel::load(&path).unwrap_err().to_string();
         assert!(e.contains("weights"), "{e}");
-        let mut m = HazardModel::fit(
-            &[([0.0; N_FEATURES], false)],
-            0.3,
-            4.0,
-            &[false; N_FEATURES],
-            1,
-        );
+        let mut m = blank(4.0);
         m.features[0] = "height".into();
         m.save(&path).unwrap();
         assert!(HazardModel::load(&path).is_err());

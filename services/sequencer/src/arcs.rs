@@ -436,11 +436,7 @@ impl ArcSet {
         let reach = cfg.length_m + corridor_half_width(cfg, resolution, cfg.length_m);
         let half = (reach / resolution).ceil() as i32 + 1;
         let side = 2 * half as usize;
-        let port_mask = arcs
-            .iter()
-            .enumerate()
-            .filter(|(_, a)| a.direction > 0.0)
-            .fold(0, |mask, (i, _)| mask | 1 << i);
+        let port_mask = to_port_of(&arcs, 0.0);
         let mut set = Self {
             cfg: cfg.clone(),
             arcs,
@@ -523,11 +519,7 @@ impl ArcSet {
 
     /// The arcs that take the boat to port of `bearing` (body frame, rad).
     pub fn to_port_of(&self, bearing: f64) -> u128 {
-        self.arcs
-            .iter()
-            .enumerate()
-            .filter(|(_, a)| angle_diff(a.direction, bearing) > 0.0)
-            .fold(0, |mask, (i, _)| mask | 1 << i)
+        to_port_of(&self.arcs, bearing)
     }
 
     /// Mask with one bit per arc.
@@ -775,6 +767,14 @@ impl ArcChooser {
     pub fn reset(&mut self) {
         self.previous = None;
     }
+}
+
+/// Mask of the arcs whose direction lies to port of `bearing` (body frame, rad).
+fn to_port_of(arcs: &[Arc], bearing: f64) -> u128 {
+    arcs.iter()
+        .enumerate()
+        .filter(|(_, a)| angle_diff(a.direction, bearing) > 0.0)
+        .fold(0, |mask, (i, _)| mask | 1 << i)
 }
 
 /// `a - b` wrapped to [-pi, pi).
