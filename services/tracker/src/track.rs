@@ -336,11 +336,16 @@ impl Track {
     /// seen for `unobserved_min_seen_s` from birth to its last detection, detected in
     /// `unobserved_min_hits` of the `unobserved_window` maps up to its last detection (an object
     /// at the edge of the view is missed there before it leaves coverage, and that is no evidence
-    /// against it), and not voted a false alarm.
+    /// against it), and not voted a false alarm unless it stands still: glint drifts, while a
+    /// small buoy 25-60 m out maps as the same one to four cells and is voted a false alarm all
+    /// along. Such a buoy was lost as it left the heads' view abeam (over the recorded maps of
+    /// 29 closed-loop runs, markers within 60 m tracked in 82.6 % of frames; held, 93.7 %, with
+    /// fewer false tracks, 198 against 203; ARCHITECTURE.md).
     fn has_an_objects_record(&self, cfg: &TrackerConfig) -> bool {
         self.confirmed
             && self.last_hit_ns - self.born_ns >= (cfg.unobserved_min_seen_s * 1e9) as u64
-            && self.class().0 != contact_class::FALSE_ALARM
+            && (self.class().0 != contact_class::FALSE_ALARM
+                || self.x[2].hypot(self.x[3]) < ANCHORED_MAX_SPEED_MPS)
             && self.recent_hits >= cfg.unobserved_min_hits
     }
 
@@ -1334,6 +1339,41 @@ mod tests {
         assert_eq!(m.velocity, [0.0, 0.0]);
         // The boat is predicted on along its course.
         assert!((by_id(6).position[1] - 35.0).abs() < 0.5, "{:?}", by_id(6));
+    }
+
+    #[test]
+    fn a_buoy_voted_a_false_alarm_is_held_out_of_view_while_drifting_glint_is_not() {
+        let model = Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json"))
+            .unwrap();
+        let mut tracker = Tracker::new(TrackerConfig::default(), model).unwrap();
+        // Both held for 10 s and voted false alarms: a small buoy standing still, and wave glint
+        // drifting at 3 m/s.
+        let mut buoy = coasting(5, NOW - 10_000_000_000, [10.0, 10.0], [0.3, 0.0]);
+        buoy.class_score[contact_class::FALSE_ALARM as usize] = 3.0;
+        let mut glint = coasting(6, NOW - 10_000_000_000, [-10.0, 10.0], [0.0, 3.0]);
+        glint.class_score[contact_class::FALSE_ALARM as usize] = 3.0;
+        tracker.tracks = vec![buoy, glint];
+        tracker.last_stamp = Some(NOW);
+        let grid = GridGeometry {
+            width: 200,
+            height: 200,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        // Nothing observed for 5 s: both left the heads' view.
+        let cells = vec![MapCell::default(); grid.cell_count()];
+        let mut list = ContactList::default();
+        for k in 1..=25u64 {
+            let hdr = WorldMapHeader {
+                hdr: Header::new(k, NOW + k * 200_000_000, "test"),
+                grid,
+                ..Default::default()
+            };
+            tracker.update(&hdr, &cells, "test", &mut list).unwrap();
+        }
+        let ids: Vec<u32> = list.as_slice().iter().map(|c| c.id).collect();
+        assert_eq!(ids, [5]);
+        assert_eq!(list.as_slice()[0].velocity, [0.0, 0.0]);
     }
 
     #[test]
