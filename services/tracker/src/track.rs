@@ -38,11 +38,6 @@ pub struct TrackerConfig {
     pub min_cells: u32,
     /// Hazard cells closer than this (m) belong to one component (0.5 m cells: 0.5 = 8-connected).
     pub link_m: f64,
-    /// A component larger than this (m, either axis) is split where it is dense: a bank with
-    /// boats moored along it, joined to it by the stereo smear, gives a detection per boat and
-    /// one for the rest (see [`crate::detect::Detector::detect`]); compact parts up to half this
-    /// size count. Infinite never splits.
-    pub split_min_m: f64,
     /// Detections kept per map at most (scan order).
     pub max_detections: usize,
     /// White-acceleration noise of the constant-velocity model (m/s^2).
@@ -130,11 +125,6 @@ impl TrackerConfig {
             min_cells: self.min_cells,
             max: self.max_detections,
             link_cells: (self.link_m / grid.resolution_m).round().max(1.0) as u32,
-            split_min_cells: if self.split_min_m.is_finite() {
-                (self.split_min_m / grid.resolution_m).round().max(1.0) as u32
-            } else {
-                u32::MAX
-            },
         }
     }
 }
@@ -160,10 +150,6 @@ impl Default for TrackerConfig {
             guide_margin_m: 2.0,
             min_cells: 1,
             link_m: 0.5,
-            // Above a far boat's smear (up to 25 m along the line of sight at 70 m; split at 15 m,
-            // open_water_crossing's crossing boat lost 8 of its 17 frames in view), below a
-            // bank's extent (ARCHITECTURE.md, moored boats). As `FRAGMENT_MAX_EXTENT_M`.
-            split_min_m: 30.0,
             max_detections: 256,
             accel_sigma: 0.5,
             range_sigma: [0.2, 0.01],
@@ -465,9 +451,6 @@ impl Tracker {
         if !(cfg.link_m > 0.0 && cfg.link_m <= 10.0) {
             return bad("link_m must be within (0, 10]");
         }
-        if cfg.split_min_m.is_nan() || cfg.split_min_m <= 0.0 {
-            return bad("split_min_m must be > 0 (inf never splits)");
-        }
         if cfg.guided_hazard_threshold > cfg.hazard_threshold {
             return bad("guided_hazard_threshold must not exceed hazard_threshold");
         }
@@ -584,7 +567,6 @@ impl Tracker {
                     // threshold over a whole shore.
                     radius: guide_radius(t, margin, stamp),
                     fresh: t.placed_by_fresh_cells,
-                    keep_whole: t.extent[0].max(t.extent[1]) as f64 <= FRAGMENT_MAX_EXTENT_M,
                 }),
         );
         let params = self.cfg.detect_params(&g);
@@ -1211,19 +1193,11 @@ const FRESH_MIN_CELLS: u32 = 3;
 /// A point this far (m) beyond half a track's largest extent still lies on its object.
 const FRAGMENT_MARGIN_M: f64 = 3.0;
 
-/// The largest extent (m) a track's hull counts with: a boat's with its smear (up to 25 m at 70 m),
-/// as the detector's `split_min_m`. A bank's track, 30x68 m, took every detection within 37 m of
-/// its centre for a piece of itself, and the boats moored along the bank never had a track of
-/// their own (cluttered_river; capped at 15 m, more false tracks: ARCHITECTURE.md). A track no
-/// larger keeps the components reaching into its guide window whole.
-const FRAGMENT_MAX_EXTENT_M: f64 = 30.0;
-
 /// Whether `position` (measured with covariance `r`) lies on the object of track `t`: inside its
 /// gate, or on its hull (a boat's bow and stern can map as two blobs metres apart).
 fn same_object(t: &Track, position: [f64; 2], r: &Matrix2<f64>, gate_chi2: f64) -> bool {
     let y = Vector2::new(position[0] - t.x[0], position[1] - t.x[1]);
-    let size =
-        0.5 * (t.extent[0].max(t.extent[1]) as f64).min(FRAGMENT_MAX_EXTENT_M) + FRAGMENT_MARGIN_M;
+    let size = 0.5 * t.extent[0].max(t.extent[1]) as f64 + FRAGMENT_MARGIN_M;
     if y.norm() <= size {
         return true;
     }
@@ -1365,18 +1339,6 @@ mod tests {
         assert_eq!(m.velocity, [0.0, 0.0]);
         // The boat is predicted on along its course.
         assert!((by_id(6).position[1] - 35.0).abs() < 0.5, "{:?}", by_id(6));
-    }
-
-    #[test]
-    fn a_banks_track_does_not_take_a_boat_moored_20_m_off_its_centre_for_a_piece_of_itself() {
-        let r = Matrix2::identity() * 0.25;
-        let mut bank = coasting(1, 0, [0.0, 0.0], [0.0, 0.0]);
-        bank.extent = [30.0, 68.0, 4.0];
-        assert!(!same_object(&bank, [20.0, 0.0], &r, 9.21));
-        // A boat's hull and its smear, 7 m apart, are one object.
-        let mut boat = coasting(2, 0, [0.0, 0.0], [5.0, 0.0]);
-        boat.extent = [3.0, 9.0, 2.0];
-        assert!(same_object(&boat, [-7.0, 0.0], &r, 9.21));
     }
 
     #[test]
