@@ -1304,17 +1304,13 @@ mod tests {
         assert_eq!(t.class().0, contact_class::FALSE_ALARM);
     }
 
-    #[test]
-    fn a_marker_out_of_view_is_held_where_it_was_not_drifted_by_its_velocity() {
+    /// The contacts after `tracks` (the committed model's tracker, last updated at `NOW`) saw 5 s
+    /// of maps with nothing observed: out of the heads' view.
+    fn out_of_view_for_5_s(tracks: Vec<Track>) -> ContactList {
         let model = Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json"))
             .unwrap();
         let mut tracker = Tracker::new(TrackerConfig::default(), model).unwrap();
-        // A buoy held for 10 s whose track picked up 0.9 m/s as it left the view, and a boat.
-        let mut marker = coasting(5, NOW - 10_000_000_000, [10.0, 10.0], [0.9, 0.0]);
-        marker.class_score[contact_class::CHANNEL_MARKER as usize] = 3.0;
-        let mut boat = coasting(6, NOW - 10_000_000_000, [-10.0, 10.0], [0.0, 5.0]);
-        boat.class_score[contact_class::BOAT as usize] = 3.0;
-        tracker.tracks = vec![marker, boat];
+        tracker.tracks = tracks;
         tracker.last_stamp = Some(NOW);
         let grid = GridGeometry {
             width: 200,
@@ -1322,7 +1318,6 @@ mod tests {
             resolution_m: 0.5,
             center: [0.0, 0.0],
         };
-        // Nothing observed: both are out of the sensors' view for 5 s.
         let cells = vec![MapCell::default(); grid.cell_count()];
         let mut list = ContactList::default();
         for k in 1..=25u64 {
@@ -1333,6 +1328,17 @@ mod tests {
             };
             tracker.update(&hdr, &cells, "test", &mut list).unwrap();
         }
+        list
+    }
+
+    #[test]
+    fn a_marker_out_of_view_is_held_where_it_was_not_drifted_by_its_velocity() {
+        // A buoy held for 10 s whose track picked up 0.9 m/s as it left the view, and a boat.
+        let mut marker = coasting(5, NOW - 10_000_000_000, [10.0, 10.0], [0.9, 0.0]);
+        marker.class_score[contact_class::CHANNEL_MARKER as usize] = 3.0;
+        let mut boat = coasting(6, NOW - 10_000_000_000, [-10.0, 10.0], [0.0, 5.0]);
+        boat.class_score[contact_class::BOAT as usize] = 3.0;
+        let list = out_of_view_for_5_s(vec![marker, boat]);
         let by_id = |id| list.as_slice().iter().find(|c| c.id == id).unwrap();
         let m = by_id(5);
         assert!((m.position[0] - 10.18).abs() < 0.01, "{m:?}");
@@ -1343,34 +1349,13 @@ mod tests {
 
     #[test]
     fn a_buoy_voted_a_false_alarm_is_held_out_of_view_while_drifting_glint_is_not() {
-        let model = Model::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/contact.json"))
-            .unwrap();
-        let mut tracker = Tracker::new(TrackerConfig::default(), model).unwrap();
         // Both held for 10 s and voted false alarms: a small buoy standing still, and wave glint
         // drifting at 3 m/s.
         let mut buoy = coasting(5, NOW - 10_000_000_000, [10.0, 10.0], [0.3, 0.0]);
         buoy.class_score[contact_class::FALSE_ALARM as usize] = 3.0;
         let mut glint = coasting(6, NOW - 10_000_000_000, [-10.0, 10.0], [0.0, 3.0]);
         glint.class_score[contact_class::FALSE_ALARM as usize] = 3.0;
-        tracker.tracks = vec![buoy, glint];
-        tracker.last_stamp = Some(NOW);
-        let grid = GridGeometry {
-            width: 200,
-            height: 200,
-            resolution_m: 0.5,
-            center: [0.0, 0.0],
-        };
-        // Nothing observed for 5 s: both left the heads' view.
-        let cells = vec![MapCell::default(); grid.cell_count()];
-        let mut list = ContactList::default();
-        for k in 1..=25u64 {
-            let hdr = WorldMapHeader {
-                hdr: Header::new(k, NOW + k * 200_000_000, "test"),
-                grid,
-                ..Default::default()
-            };
-            tracker.update(&hdr, &cells, "test", &mut list).unwrap();
-        }
+        let list = out_of_view_for_5_s(vec![buoy, glint]);
         let ids: Vec<u32> = list.as_slice().iter().map(|c| c.id).collect();
         assert_eq!(ids, [5]);
         assert_eq!(list.as_slice()[0].velocity, [0.0, 0.0]);
