@@ -24,6 +24,11 @@
 //! default) a cell observed in this very map by a few points standing that high therefore
 //! joins at any hazard, and the component also reports the centroid of such cells
 //! ([`Detection::fresh_position`]): where the hull is now.
+//!
+//! Linking also joins a boat moored by a bank to the bank, through the bank's range smear. A
+//! component larger than any boat ([`DetectParams::split_min_cells`]) is therefore cut at its dense
+//! parts: each compact one is a detection of its own, the rest one more. Not where a boat-sized
+//! track's guide window reaches in ([`GuideWindow::keep_whole`]): a moving boat and its smear.
 
 use crate::line_of_sight;
 use messages::{GridGeometry, MapCell};
@@ -62,6 +67,10 @@ pub struct Detection {
     /// Cells at the detection threshold that were observed in this very map: evidence of now,
     /// while a cell the map holds from older observations alone may be a mismatch frames old.
     pub observed_cells: u32,
+    /// A component larger than any boat, or a dense part cut from one (see
+    /// [`DetectParams::split_min_cells`]): a bank, or a boat moored along it. Neither moves: a
+    /// track it places is held still.
+    pub in_large_component: bool,
 }
 
 /// What a cell inside a guide window needs to join a component (see [`Detector::guide`]).
@@ -89,6 +98,10 @@ pub struct GuideWindow {
     /// ([`GuideThresholds::fresh_min_points`]): for a track detected like a real object, not for
     /// wave glint, whose window would find such cells somewhere on the waves and let it walk on.
     pub fresh: bool,
+    /// A component reaching into this window is never split (see [`DetectParams::split_min_cells`]):
+    /// the window's track is a boat's, and what the window gathers around it is the boat and its
+    /// smear (cut into bow and smear, a boat met head-on lost its track on cluttered_river, seed 58).
+    pub keep_whole: bool,
 }
 
 /// What [`Detector::detect`] looks for.
@@ -102,17 +115,29 @@ pub struct DetectParams {
     pub max: usize,
     /// Cells this close (in cells, both axes) are linked; 1 = 8-connected.
     pub link_cells: u32,
+    /// A component larger than this (cells, either axis) is split where it is dense (see
+    /// [`Detector::detect`]); `u32::MAX` never splits.
+    pub split_min_cells: u32,
 }
 
 #[derive(Default)]
 pub struct Detector {
     label: Vec<u32>,
     stack: Vec<u32>,
+    /// The cells of the component being described, and of its dense parts when split.
+    members: Vec<u32>,
+    part: Vec<u32>,
+    /// `pass` marks: in the component being split (`member_mark`), taken by a part of it
+    /// (`part_mark`).
+    member_mark: Vec<u32>,
+    part_mark: Vec<u32>,
     pass: u32,
     /// Cells marked with `guide_pass` lie in a guide window of the next `detect` ...
     guide_mark: Vec<u32>,
-    /// ... and in one whose fresh cells join ([`GuideWindow::fresh`]).
+    /// ... and in one whose fresh cells join ([`GuideWindow::fresh`]) ...
     fresh_mark: Vec<u32>,
+    /// ... and in one whose components stay whole ([`GuideWindow::keep_whole`]).
+    whole_mark: Vec<u32>,
     guide_pass: u32,
     /// Thresholds inside the guide windows; `None` once the windows have been used.
     guided: Option<GuideThresholds>,
@@ -137,6 +162,8 @@ impl Detector {
             self.guide_mark.resize(w * h, 0);
             self.fresh_mark.clear();
             self.fresh_mark.resize(w * h, 0);
+            self.whole_mark.clear();
+            self.whole_mark.resize(w * h, 0);
             self.guide_pass = 0;
         }
         self.guide_pass = self.guide_pass.wrapping_add(1).max(1);
@@ -148,6 +175,7 @@ impl Detector {
             centre: [x, y],
             radius,
             fresh,
+            keep_whole,
         } in windows
         {
             if !(x.is_finite() && y.is_finite() && radius.is_finite() && radius >= 0.0) {
@@ -170,6 +198,9 @@ impl Detector {
                         if fresh {
                             self.fresh_mark[row * w + col] = self.guide_pass;
                         }
+                        if keep_whole {
+                            self.whole_mark[row * w + col] = self.guide_pass;
+                        }
                     }
                 }
             }
@@ -190,6 +221,7 @@ impl Detector {
             min_cells,
             max,
             link_cells,
+            split_min_cells,
         } = *params;
         let link = link_cells.max(1) as i64;
         out.clear();
@@ -209,6 +241,8 @@ impl Detector {
             .take()
             .filter(|_| self.guide_mark.len() == w * h);
         let (marks, fresh_marks, mark) = (&self.guide_mark, &self.fresh_mark, self.guide_pass);
+        let whole_marks = &self.whole_mark;
+        let keep_whole = |i: usize| guided.is_some() && whole_marks[i] == mark;
         // Observed in this map, standing high, inside a window that takes such cells.
         let fresh = |i: usize| {
             guided.is_some_and(|g| {
@@ -233,7 +267,13 @@ impl Detector {
                             || fresh(i))
                 })
         };
-        let r = grid.resolution_m;
+        if self.member_mark.len() != w * h {
+            self.member_mark.clear();
+            self.member_mark.resize(w * h, 0);
+            self.part_mark.clear();
+            self.part_mark.resize(w * h, 0);
+        }
+        let detection = |members: &[u32]| describe(grid, cells, members, thr, &fresh);
         for start in 0..w * h {
             if !on(start) || self.label[start] == pass {
                 continue;
@@ -241,38 +281,18 @@ impl Detector {
             self.stack.clear();
             self.stack.push(start as u32);
             self.label[start] = pass;
-            // Hazard-weighted moments in cell units.
-            let (mut n, mut sw, mut sx, mut sy, mut sxx, mut syy, mut sxy) =
-                (0u32, 0f64, 0f64, 0f64, 0f64, 0f64, 0f64);
+            self.members.clear();
             let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
-            let (mut hmax, mut peak) = (i16::MIN, 0u8);
-            let (mut fresh_n, mut fresh_x, mut fresh_y) = (0u32, 0f64, 0f64);
-            let mut observed_n = 0u32;
+            let mut whole = false;
             while let Some(i) = self.stack.pop() {
+                self.members.push(i);
                 let i = i as usize;
+                whole |= keep_whole(i);
                 let (x, y) = (i % w, i / w);
-                let c = cells[i];
-                let wgt = c.hazard as f64 / 255.0;
-                n += 1;
-                sw += wgt;
-                let (fx, fy) = (x as f64, y as f64);
-                sx += wgt * fx;
-                sy += wgt * fy;
-                sxx += wgt * fx * fx;
-                syy += wgt * fy * fy;
-                sxy += wgt * fx * fy;
                 c0 = c0.min(x);
                 c1 = c1.max(x);
                 r0 = r0.min(y);
                 r1 = r1.max(y);
-                hmax = hmax.max(c.max_height_cm);
-                peak = peak.max(c.hazard);
-                observed_n += u32::from(c.observed > 0 && c.hazard >= thr);
-                if fresh(i) {
-                    fresh_n += 1;
-                    fresh_x += fx;
-                    fresh_y += fy;
-                }
                 for dy in -link..=link {
                     for dx in -link..=link {
                         let (nx, ny) = (x as i64 + dx, y as i64 + dy);
@@ -287,48 +307,210 @@ impl Detector {
                     }
                 }
             }
-            if n < min_cells || out.len() >= max {
+            if (self.members.len() as u32) < min_cells {
                 continue;
             }
-            let (mx, my) = (sx / sw, sy / sw);
-            let vxx = (sxx / sw - mx * mx).max(0.0) + 1.0 / 12.0;
-            let vyy = (syy / sw - my * my).max(0.0) + 1.0 / 12.0;
-            let vxy = sxy / sw - mx * my;
-            // Principal variances of the 2x2 covariance.
-            let tr = vxx + vyy;
-            let det = vxx * vyy - vxy * vxy;
-            let disc = (tr * tr / 4.0 - det).max(0.0).sqrt();
-            let (l1, l2) = (tr / 2.0 + disc, (tr / 2.0 - disc).max(1e-6));
-            let west = grid.center[0] - grid.width as f64 / 2.0 * r;
-            let south = grid.center[1] - grid.height as f64 / 2.0 * r;
-            let at = |cx: f64, cy: f64| [west + (cx + 0.5) * r, south + (cy + 0.5) * r];
-            let position = at(mx, my);
-            let (sight, _) = line_of_sight::direction([
-                position[0] - grid.center[0],
-                position[1] - grid.center[1],
-            ]);
-            let (along_var, across_var) =
-                line_of_sight::along_across_variances(sight, [vxx, vxy, vyy]);
-            out.push(Detection {
-                position,
-                extent: [(c1 - c0 + 1) as f64 * r, (r1 - r0 + 1) as f64 * r],
-                area: n as f64 * r * r,
-                height: hmax.max(0) as f64 / 100.0,
-                elongation: (l1 / l2).sqrt(),
-                mean_hazard: sw / n as f64,
-                along_sd_m: along_var.max(0.0).sqrt() * r,
-                across_sd_m: across_var.max(0.0).sqrt() * r,
-                peak_hazard: peak,
-                cells: n,
-                fresh_cells: fresh_n,
-                fresh_position: if fresh_n > 0 {
-                    at(fresh_x / fresh_n as f64, fresh_y / fresh_n as f64)
-                } else {
-                    at(mx, my)
-                },
-                observed_cells: observed_n,
-            });
+            let large = (c1 - c0 + 1).max(r1 - r0 + 1) as u32 > split_min_cells && !whole;
+            if !large {
+                if out.len() < max {
+                    out.push(detection(&self.members));
+                }
+                continue;
+            }
+            // A component larger than any boat: a bank, or a bank with the boats moored along it,
+            // which the stereo smear of tens of metres of range joins to it. Its dense parts (cells
+            // with `SPLIT_CORE_NEIGHBOURS` of their 8 neighbours in the component) fall apart where
+            // the join is sparse; each compact one, with the component's cells touching it, is a
+            // detection of its own, and the rest stays one.
+            for &i in &self.members {
+                self.member_mark[i as usize] = pass;
+            }
+            let member = |marks: &[u32], x: i64, y: i64| {
+                x >= 0
+                    && y >= 0
+                    && x < w as i64
+                    && y < h as i64
+                    && marks[y as usize * w + x as usize] == pass
+            };
+            let dense = |marks: &[u32], i: usize| {
+                let (x, y) = ((i % w) as i64, (i / w) as i64);
+                NEIGHBOURS
+                    .iter()
+                    .filter(|(dx, dy)| member(marks, x + dx, y + dy))
+                    .count()
+                    >= SPLIT_CORE_NEIGHBOURS
+            };
+            for k in 0..self.members.len() {
+                let seed = self.members[k] as usize;
+                if self.part_mark[seed] == pass || !dense(&self.member_mark, seed) {
+                    continue;
+                }
+                // One dense part, 8-connected, then the component's cells touching it.
+                self.part.clear();
+                self.part.push(seed as u32);
+                self.part_mark[seed] = pass;
+                let mut next = 0;
+                let (mut p0, mut p1, mut q0, mut q1) = (usize::MAX, 0, usize::MAX, 0);
+                while next < self.part.len() {
+                    let i = self.part[next] as usize;
+                    next += 1;
+                    let (x, y) = (i % w, i / w);
+                    (p0, p1, q0, q1) = (p0.min(x), p1.max(x), q0.min(y), q1.max(y));
+                    for (dx, dy) in NEIGHBOURS {
+                        let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                        if !member(&self.member_mark, nx, ny) {
+                            continue;
+                        }
+                        let j = ny as usize * w + nx as usize;
+                        if self.part_mark[j] != pass && dense(&self.member_mark, j) {
+                            self.part_mark[j] = pass;
+                            self.part.push(j as u32);
+                        }
+                    }
+                }
+                let core = self.part.len();
+                let compact = (p1 - p0 + 1).max(q1 - q0 + 1) as u32 <= split_min_cells / 2;
+                if !compact || (core as u32) < SPLIT_MIN_PART_CELLS {
+                    // Left to the rest; its cells stay marked, so it is not walked again.
+                    continue;
+                }
+                for n in 0..core {
+                    let i = self.part[n] as usize;
+                    let (x, y) = ((i % w) as i64, (i / w) as i64);
+                    for (dx, dy) in NEIGHBOURS {
+                        if !member(&self.member_mark, x + dx, y + dy) {
+                            continue;
+                        }
+                        let j = (y + dy) as usize * w + (x + dx) as usize;
+                        if self.part_mark[j] != pass {
+                            self.part_mark[j] = pass;
+                            self.part.push(j as u32);
+                        }
+                    }
+                }
+                if out.len() < max {
+                    out.push(Detection {
+                        in_large_component: true,
+                        ..detection(&self.part)
+                    });
+                }
+                // Marked as taken by a compact part: excluded from the rest below.
+                for &i in &self.part {
+                    self.member_mark[i as usize] = pass.wrapping_sub(1);
+                }
+            }
+            let member_mark = &self.member_mark;
+            self.members.retain(|&i| member_mark[i as usize] == pass);
+            if self.members.len() as u32 >= min_cells && out.len() < max {
+                out.push(Detection {
+                    in_large_component: true,
+                    ..detection(&self.members)
+                });
+            }
         }
+    }
+}
+
+/// The 8 neighbours of a cell.
+const NEIGHBOURS: [(i64, i64); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
+/// A cell of a large component with this many of its 8 neighbours in the component lies in a
+/// dense part of it (see [`Detector::detect`]). 5: on cluttered_river's recorded maps it cut the
+/// two moored boats 9 m off the east bank (80 and 111 cells) from the bank (735), which 4 also
+/// did with each part a cell wider.
+const SPLIT_CORE_NEIGHBOURS: usize = 5;
+
+/// A dense part smaller than this (cells) is left to the rest of its component: a speck of the
+/// bank's edge is no object.
+const SPLIT_MIN_PART_CELLS: u32 = 12;
+
+/// The detection of component `members` of `cells` over `grid`: hazard-weighted moments, extent,
+/// height, peak, and the cells observed in this map or standing high inside a fresh window.
+fn describe(
+    grid: &GridGeometry,
+    cells: &[MapCell],
+    members: &[u32],
+    thr: u8,
+    fresh: &impl Fn(usize) -> bool,
+) -> Detection {
+    let w = grid.width as usize;
+    let r = grid.resolution_m;
+    // Hazard-weighted moments in cell units.
+    let (mut sw, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0f64, 0f64, 0f64, 0f64, 0f64, 0f64);
+    let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
+    let (mut hmax, mut peak) = (i16::MIN, 0u8);
+    let (mut fresh_n, mut fresh_x, mut fresh_y) = (0u32, 0f64, 0f64);
+    let mut observed_n = 0u32;
+    for &i in members {
+        let i = i as usize;
+        let (x, y) = (i % w, i / w);
+        let c = cells[i];
+        let wgt = c.hazard as f64 / 255.0;
+        sw += wgt;
+        let (fx, fy) = (x as f64, y as f64);
+        sx += wgt * fx;
+        sy += wgt * fy;
+        sxx += wgt * fx * fx;
+        syy += wgt * fy * fy;
+        sxy += wgt * fx * fy;
+        c0 = c0.min(x);
+        c1 = c1.max(x);
+        r0 = r0.min(y);
+        r1 = r1.max(y);
+        hmax = hmax.max(c.max_height_cm);
+        peak = peak.max(c.hazard);
+        observed_n += u32::from(c.observed > 0 && c.hazard >= thr);
+        if fresh(i) {
+            fresh_n += 1;
+            fresh_x += fx;
+            fresh_y += fy;
+        }
+    }
+    let n = members.len() as u32;
+    let (mx, my) = (sx / sw, sy / sw);
+    let vxx = (sxx / sw - mx * mx).max(0.0) + 1.0 / 12.0;
+    let vyy = (syy / sw - my * my).max(0.0) + 1.0 / 12.0;
+    let vxy = sxy / sw - mx * my;
+    // Principal variances of the 2x2 covariance.
+    let tr = vxx + vyy;
+    let det = vxx * vyy - vxy * vxy;
+    let disc = (tr * tr / 4.0 - det).max(0.0).sqrt();
+    let (l1, l2) = (tr / 2.0 + disc, (tr / 2.0 - disc).max(1e-6));
+    let west = grid.center[0] - grid.width as f64 / 2.0 * r;
+    let south = grid.center[1] - grid.height as f64 / 2.0 * r;
+    let at = |cx: f64, cy: f64| [west + (cx + 0.5) * r, south + (cy + 0.5) * r];
+    let position = at(mx, my);
+    let (sight, _) =
+        line_of_sight::direction([position[0] - grid.center[0], position[1] - grid.center[1]]);
+    let (along_var, across_var) = line_of_sight::along_across_variances(sight, [vxx, vxy, vyy]);
+    Detection {
+        position,
+        extent: [(c1 - c0 + 1) as f64 * r, (r1 - r0 + 1) as f64 * r],
+        area: n as f64 * r * r,
+        height: hmax.max(0) as f64 / 100.0,
+        elongation: (l1 / l2).sqrt(),
+        mean_hazard: sw / n as f64,
+        along_sd_m: along_var.max(0.0).sqrt() * r,
+        across_sd_m: across_var.max(0.0).sqrt() * r,
+        peak_hazard: peak,
+        cells: n,
+        fresh_cells: fresh_n,
+        fresh_position: if fresh_n > 0 {
+            at(fresh_x / fresh_n as f64, fresh_y / fresh_n as f64)
+        } else {
+            at(mx, my)
+        },
+        observed_cells: observed_n,
+        in_large_component: false,
     }
 }
 
@@ -358,6 +540,7 @@ mod tests {
             min_cells: 1,
             max: 4,
             link_cells: 1,
+            split_min_cells: u32::MAX,
         };
         Detector::new().detect(&grid, &cells, &params, &mut out);
         let east = out.iter().find(|d| d.position[0] > 10.0).unwrap();
@@ -381,6 +564,77 @@ mod tests {
             "{}",
             north.across_sd_m
         );
+    }
+
+    #[test]
+    fn a_boat_moored_by_a_bank_is_split_from_it_where_the_join_is_sparse() {
+        // 0.5 m cells, the map's centre at the origin (grid 100x100, south-west corner -25, -25).
+        let grid = GridGeometry {
+            width: 100,
+            height: 100,
+            resolution_m: 0.5,
+            center: [0.0, 0.0],
+        };
+        let mut cells = vec![MapCell::default(); 100 * 100];
+        let mut set = |x: usize, y: usize| {
+            cells[y * 100 + x] = MapCell {
+                hazard: 255,
+                max_height_cm: 200,
+                ..Default::default()
+            };
+        };
+        // A bank 40 m long and 5 m deep along the east edge ...
+        for y in 10..90 {
+            for x in 80..90 {
+                set(x, y);
+            }
+        }
+        // ... a boat 3 x 6 m, 4 m off it ...
+        for y in 44..56 {
+            for x in 66..72 {
+                set(x, y);
+            }
+        }
+        // ... and a sparse line of cells (the stereo smear) joining them, every other cell.
+        for x in (73..80).step_by(2) {
+            set(x, 50);
+        }
+        let mut d = Detector::new();
+        let mut out = Vec::new();
+        let params = |split_min_cells| DetectParams {
+            threshold: 128,
+            min_cells: 1,
+            max: 16,
+            link_cells: 3,
+            split_min_cells,
+        };
+        d.detect(&grid, &cells, &params(u32::MAX), &mut out);
+        assert_eq!(out.len(), 1, "{out:?}");
+        // Split above 30 m: the boat's cells and the ones touching it, and the rest.
+        d.detect(&grid, &cells, &params(60), &mut out);
+        assert_eq!(out.len(), 2, "{out:?}");
+        let boat = out
+            .iter()
+            .find(|d| d.extent[0].max(d.extent[1]) < 15.0)
+            .unwrap();
+        // Cell centres x 66..72 -> 8.25..10.75 m east, y 44..56 -> -2.75..2.75 m north.
+        assert!((boat.position[0] - 9.5).abs() < 0.3, "{boat:?}");
+        assert!(boat.position[1].abs() < 0.3, "{boat:?}");
+        assert!(boat.cells >= 72 && boat.cells <= 80, "{boat:?}");
+        let bank = out.iter().find(|d| d.extent[1] >= 39.0).unwrap();
+        assert_eq!(bank.cells + boat.cells, 800 + 72 + 4);
+        // Nor one reaching into the guide window of a boat-sized track: a moving boat and the
+        // smear its window gathered.
+        d.guide(&grid, guided(128), [window([9.5, 0.0], 2.0, false)]);
+        d.detect(&grid, &cells, &params(60), &mut out);
+        assert_eq!(out.len(), 1, "{out:?}");
+        // A component of the boat's own size is never split.
+        let mut small = vec![MapCell::default(); 100 * 100];
+        for i in (0..100 * 100).filter(|&i| cells[i].hazard > 0 && i % 100 < 73) {
+            small[i] = cells[i];
+        }
+        d.detect(&grid, &small, &params(60), &mut out);
+        assert_eq!(out.len(), 1, "{out:?}");
     }
 
     #[test]
@@ -415,6 +669,7 @@ mod tests {
             min_cells,
             max,
             link_cells,
+            split_min_cells: u32::MAX,
         };
         d.detect(&grid, &cells, &params(128, 1, 16, 1), &mut out);
         assert_eq!(out.len(), 2);
@@ -457,6 +712,7 @@ mod tests {
         min_cells: 1,
         max: 16,
         link_cells: 1,
+        split_min_cells: u32::MAX,
     };
 
     #[test]
@@ -494,6 +750,7 @@ mod tests {
             centre,
             radius,
             fresh,
+            keep_whole: true,
         }
     }
 

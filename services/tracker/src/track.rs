@@ -38,6 +38,11 @@ pub struct TrackerConfig {
     pub min_cells: u32,
     /// Hazard cells closer than this (m) belong to one component (0.5 m cells: 0.5 = 8-connected).
     pub link_m: f64,
+    /// A component larger than this (m, either axis) is split where it is dense: a bank with
+    /// boats moored along it, joined to it by the stereo smear, gives a detection per boat and
+    /// one for the rest (see [`crate::detect::Detector::detect`]); compact parts up to half this
+    /// size count. Infinite never splits.
+    pub split_min_m: f64,
     /// Detections kept per map at most (scan order).
     pub max_detections: usize,
     /// White-acceleration noise of the constant-velocity model (m/s^2).
@@ -125,6 +130,11 @@ impl TrackerConfig {
             min_cells: self.min_cells,
             max: self.max_detections,
             link_cells: (self.link_m / grid.resolution_m).round().max(1.0) as u32,
+            split_min_cells: if self.split_min_m.is_finite() {
+                (self.split_min_m / grid.resolution_m).round().max(1.0) as u32
+            } else {
+                u32::MAX
+            },
         }
     }
 }
@@ -150,6 +160,10 @@ impl Default for TrackerConfig {
             guide_margin_m: 2.0,
             min_cells: 1,
             link_m: 0.5,
+            // Above a far boat's smear (up to 25 m along the line of sight at 70 m; split at 15 m,
+            // open_water_crossing's crossing boat lost 8 of its 17 frames in view), below a
+            // bank's extent (ARCHITECTURE.md, moored boats). As `FRAGMENT_MAX_EXTENT_M`.
+            split_min_m: 30.0,
             max_detections: 256,
             accel_sigma: 0.5,
             range_sigma: [0.2, 0.01],
@@ -451,6 +465,9 @@ impl Tracker {
         if !(cfg.link_m > 0.0 && cfg.link_m <= 10.0) {
             return bad("link_m must be within (0, 10]");
         }
+        if cfg.split_min_m.is_nan() || cfg.split_min_m <= 0.0 {
+            return bad("split_min_m must be > 0 (inf never splits)");
+        }
         if cfg.guided_hazard_threshold > cfg.hazard_threshold {
             return bad("guided_hazard_threshold must not exceed hazard_threshold");
         }
@@ -567,6 +584,7 @@ impl Tracker {
                     // threshold over a whole shore.
                     radius: guide_radius(t, margin, stamp),
                     fresh: t.placed_by_fresh_cells,
+                    keep_whole: t.extent[0].max(t.extent[1]) as f64 <= FRAGMENT_MAX_EXTENT_M,
                 }),
         );
         let params = self.cfg.detect_params(&g);
@@ -626,6 +644,9 @@ impl Tracker {
                     t.misses = 0;
                     t.unobserved_ns = 0;
                     t.held_still = false;
+                    if d.in_large_component {
+                        stand_still(t);
+                    }
                     t.last_hit_ns = stamp;
                     // A component only a guide window let through is the smear of the last
                     // frames: it places the object but says nothing of its shape.
@@ -751,6 +772,9 @@ impl Tracker {
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
             });
+            if d.in_large_component {
+                stand_still(self.tracks.last_mut().expect("just pushed"));
+            }
             self.next_id = self.next_id.wrapping_add(1).max(1);
         }
         self.clutter.end_map(dt);
@@ -1087,6 +1111,29 @@ fn hold_still(t: &mut Track) {
     }
 }
 
+/// Places a track detected in a large component ([`Detection::in_large_component`]: a bank, or a
+/// boat moored along it) as an object that does not move: zero velocity, uncorrelated with the
+/// position, its variance [`STANDING_WANDER_MPS`] squared. Its centroid jumps metres from map to
+/// map as the component is cut differently: as a constant-velocity track it took speed from the
+/// jumps (a piece of the east bank, tracked at 1.2 m/s as a boat 20 m off, stalled
+/// cluttered_river seed 56), and held still like an anchored object out of view its gate grew
+/// too tight to follow them (a moored boat's track lost its detections 3 m off and was dropped).
+fn stand_still(t: &mut Track) {
+    t.x[2] = 0.0;
+    t.x[3] = 0.0;
+    for v in 2..4 {
+        for i in 0..4 {
+            t.p[(v, i)] = 0.0;
+            t.p[(i, v)] = 0.0;
+        }
+        t.p[(v, v)] = STANDING_WANDER_MPS * STANDING_WANDER_MPS;
+    }
+}
+
+/// See [`stand_still`]: how far (m/s, 1 sigma) a standing object's detection may wander between
+/// maps.
+const STANDING_WANDER_MPS: f64 = 1.0;
+
 /// Whether any cell within `radius` (m) of (x, y) was observed in this map.
 fn observed_near(g: &GridGeometry, cells: &[MapCell], x: f64, y: f64, radius: f64) -> bool {
     let reach = (radius / g.resolution_m).ceil() as i64;
@@ -1193,11 +1240,19 @@ const FRESH_MIN_CELLS: u32 = 3;
 /// A point this far (m) beyond half a track's largest extent still lies on its object.
 const FRAGMENT_MARGIN_M: f64 = 3.0;
 
+/// The largest extent (m) a track's hull counts with: a boat's with its smear (up to 25 m at 70 m),
+/// as the detector's `split_min_m`. A bank's track, 30x68 m, took every detection within 37 m of
+/// its centre for a piece of itself, and the boats moored along the bank never had a track of
+/// their own (cluttered_river; capped at 15 m, more false tracks: ARCHITECTURE.md). A track no
+/// larger keeps the components reaching into its guide window whole.
+const FRAGMENT_MAX_EXTENT_M: f64 = 30.0;
+
 /// Whether `position` (measured with covariance `r`) lies on the object of track `t`: inside its
 /// gate, or on its hull (a boat's bow and stern can map as two blobs metres apart).
 fn same_object(t: &Track, position: [f64; 2], r: &Matrix2<f64>, gate_chi2: f64) -> bool {
     let y = Vector2::new(position[0] - t.x[0], position[1] - t.x[1]);
-    let size = 0.5 * t.extent[0].max(t.extent[1]) as f64 + FRAGMENT_MARGIN_M;
+    let size =
+        0.5 * (t.extent[0].max(t.extent[1]) as f64).min(FRAGMENT_MAX_EXTENT_M) + FRAGMENT_MARGIN_M;
     if y.norm() <= size {
         return true;
     }
@@ -1345,6 +1400,18 @@ mod tests {
         assert_eq!(m.velocity, [0.0, 0.0]);
         // The boat is predicted on along its course.
         assert!((by_id(6).position[1] - 35.0).abs() < 0.5, "{:?}", by_id(6));
+    }
+
+    #[test]
+    fn a_banks_track_does_not_take_a_boat_moored_20_m_off_its_centre_for_a_piece_of_itself() {
+        let r = Matrix2::identity() * 0.25;
+        let mut bank = coasting(1, 0, [0.0, 0.0], [0.0, 0.0]);
+        bank.extent = [30.0, 68.0, 4.0];
+        assert!(!same_object(&bank, [20.0, 0.0], &r, 9.21));
+        // A boat's hull and its smear, 7 m apart, are one object.
+        let mut boat = coasting(2, 0, [0.0, 0.0], [5.0, 0.0]);
+        boat.extent = [3.0, 9.0, 2.0];
+        assert!(same_object(&boat, [-7.0, 0.0], &r, 9.21));
     }
 
     #[test]

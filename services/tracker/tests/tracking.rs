@@ -1023,3 +1023,63 @@ fn a_blob_that_jumps_about_from_map_to_map_is_not_confirmed_and_one_that_moves_s
     };
     assert_eq!(confirmed_maps(off, every_map, jumping), [2, 3, 4, 5]);
 }
+
+/// A bank 40 m long and 5 m deep at x 30..35, seen over 40 m of it from y = `south`, a boat
+/// moored 4 m off it at (24, `boat_y`), and a line of range smear joining the two along y = 0.
+fn bank_with_moored_boat(grid: &GridGeometry, south: f64, boat_y: f64) -> Vec<MapCell> {
+    let mut cells = open_water(grid);
+    paint(grid, &mut cells, 200, 250, |[x, y]| {
+        (30.0..35.0).contains(&x) && (south..south + 40.0).contains(&y)
+    });
+    paint_hull_rim(grid, &mut cells, [24.0, boat_y], [0.0, 1.0], 200);
+    paint(grid, &mut cells, 150, 100, |[x, y]| {
+        (25.0..30.0).contains(&x) && (0.0..0.5).contains(&y)
+    });
+    cells
+}
+
+#[test]
+fn a_boat_moored_by_a_bank_is_a_contact_of_its_own_and_neither_is_given_a_speed() {
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let boat = [24.0, 0.75];
+    // 5 Hz maps for 4 s. How much of the bank the heads see swings by 4 m from map to map, and
+    // with it the bank's centroid; the boat's cells by 1.5 m along its hull, as the map's cells
+    // of a real hull come and go.
+    let run = |cfg: TrackerConfig, list: &mut ContactList| {
+        let mut t = Tracker::new(cfg, model()).unwrap();
+        let mut speeds = Vec::new();
+        for k in 0..20u64 {
+            let (south, boat_y) = if k % 2 == 0 {
+                (-20.0, 0.0)
+            } else {
+                (-16.0, 1.5)
+            };
+            let cells = bank_with_moored_boat(&grid, south, boat_y);
+            feed(&mut t, grid, k, &cells, list);
+            speeds.extend(
+                list.as_slice()
+                    .iter()
+                    .map(|c| c.velocity[0].hypot(c.velocity[1])),
+            );
+        }
+        speeds
+    };
+    let speeds = run(TrackerConfig::default(), &mut list);
+    let moored = confirmed_near(&list, boat, 1.5);
+    assert!(moored.is_some(), "{:?}", confirmed(&list));
+    let moored = moored.unwrap();
+    assert!(moored.extent[0].max(moored.extent[1]) < 10.0, "{moored:?}");
+    assert!(speeds.iter().all(|&s| s < 0.05), "{speeds:?}");
+    // Never cut, the boat is one component with the bank and has no contact of its own.
+    let whole = TrackerConfig {
+        split_min_m: f64::INFINITY,
+        ..TrackerConfig::default()
+    };
+    run(whole, &mut list);
+    assert!(
+        confirmed_near(&list, boat, 1.5).is_none(),
+        "{:?}",
+        confirmed(&list)
+    );
+}
