@@ -54,14 +54,14 @@ pub fn run(model: &Model, quick: bool) -> Vec<(String, f64, &'static str)> {
         let mut rss_start = 0;
         // Detections from components larger than `split_min_m`: the bank and its cut parts.
         let mut cut = 0usize;
+        let moored = [-8.0, 8.0].map(|y| TruthShape {
+            class: contact_class::BOAT,
+            position: [BANK_WEST_M - 2.0, y],
+            yaw: 1.57,
+            size: [6.0, 2.5, 1.5],
+        });
         for k in 0..updates as u64 {
             let t = k as f64 * 0.1;
-            let moored = [-8.0, 8.0].map(|y| TruthShape {
-                class: contact_class::BOAT,
-                position: [BANK_WEST_M - 2.0, y],
-                yaw: 1.57,
-                size: [6.0, 2.5, 1.5],
-            });
             let objects: Vec<TruthShape> = (0..20)
                 .map(|i| {
                     let a = i as f64 * 0.314;

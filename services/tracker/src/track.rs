@@ -1103,20 +1103,28 @@ const ANCHORED_DRIFT_MPS: f64 = 0.3;
 /// zero still spread the position: a moored boat's track reached the 10 m hold limit 9 s after
 /// it left the view (bridge_pylons).
 fn hold_still(t: &mut Track) {
-    t.x[2] = 0.0;
-    t.x[3] = 0.0;
-    if !t.held_still {
+    if t.held_still {
+        t.x[2] = 0.0;
+        t.x[3] = 0.0;
+    } else {
         t.held_still = true;
         let drift = ANCHORED_DRIFT_MPS * ANCHORED_DRIFT_MPS;
-        for v in 2..4 {
-            for i in 0..4 {
-                if i != v {
-                    t.p[(v, i)] = 0.0;
-                    t.p[(i, v)] = 0.0;
-                }
-            }
-            t.p[(v, v)] = t.p[(v, v)].min(drift);
+        stop(t, |v| v.min(drift));
+    }
+}
+
+/// Zero velocity, uncorrelated with the position; each axis' velocity variance becomes
+/// `variance` of what it was.
+fn stop(t: &mut Track, variance: impl Fn(f64) -> f64) {
+    t.x[2] = 0.0;
+    t.x[3] = 0.0;
+    for v in 2..4 {
+        let var = variance(t.p[(v, v)]);
+        for i in 0..4 {
+            t.p[(v, i)] = 0.0;
+            t.p[(i, v)] = 0.0;
         }
+        t.p[(v, v)] = var;
     }
 }
 
@@ -1128,15 +1136,7 @@ fn hold_still(t: &mut Track) {
 /// cluttered_river seed 56), and held still like an anchored object out of view its gate grew
 /// too tight to follow them (a moored boat's track lost its detections 3 m off and was dropped).
 fn stand_still(t: &mut Track) {
-    t.x[2] = 0.0;
-    t.x[3] = 0.0;
-    for v in 2..4 {
-        for i in 0..4 {
-            t.p[(v, i)] = 0.0;
-            t.p[(i, v)] = 0.0;
-        }
-        t.p[(v, v)] = STANDING_WANDER_MPS * STANDING_WANDER_MPS;
-    }
+    stop(t, |_| STANDING_WANDER_MPS * STANDING_WANDER_MPS);
 }
 
 /// See [`stand_still`]: how far (m/s, 1 sigma) a standing object's detection may wander between
