@@ -584,7 +584,7 @@ impl Tracker {
                     // threshold over a whole shore.
                     radius: guide_radius(t, margin, stamp),
                     fresh: t.placed_by_fresh_cells,
-                    keep_whole: t.extent[0].max(t.extent[1]) as f64 <= FRAGMENT_MAX_EXTENT_M,
+                    keep_whole: keeps_components_whole(t),
                 }),
         );
         let params = self.cfg.detect_params(&g);
@@ -1213,6 +1213,17 @@ fn guided(t: &Track) -> bool {
 /// Seconds since a track's last detection, at `stamp`.
 fn coasted_s(t: &Track, stamp: u64) -> f64 {
     stamp.saturating_sub(t.last_hit_ns) as f64 * 1e-9
+}
+
+/// Whether the components reaching into a guided track's window are never cut (see
+/// [`DetectParams::split_min_cells`]): a boat under way, whose smear may join it to a bank as it
+/// passes, is not to be cut into standing pieces. A track no larger than a boat with its smear, and
+/// not slower than [`HELD_STILL_MAX_SPEED_MPS`]: partial detections drag a moored boat's track to
+/// 1-2 m/s, and its window kept the bank's component whole, so the boat had no detection of its
+/// own and its track coasted out (cluttered_river, seed 56, 11-13 s).
+fn keeps_components_whole(t: &Track) -> bool {
+    t.extent[0].max(t.extent[1]) as f64 <= FRAGMENT_MAX_EXTENT_M
+        && t.x[2].hypot(t.x[3]) >= HELD_STILL_MAX_SPEED_MPS
 }
 
 /// Radius (m) of a guided track's window: the margin, half its diagonal (capped: a bank-sized

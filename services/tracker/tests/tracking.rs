@@ -1083,3 +1083,35 @@ fn a_boat_moored_by_a_bank_is_a_contact_of_its_own_and_neither_is_given_a_speed(
         confirmed(&list)
     );
 }
+
+#[test]
+fn a_moored_boat_whose_track_crept_at_1_25_mps_is_still_cut_from_the_bank_when_it_appears() {
+    let grid = grid_100m();
+    let mut list = Box::<ContactList>::default();
+    let mut t = Tracker::new(TrackerConfig::default(), model()).unwrap();
+    // 5 Hz maps. For 3 s the boat is seen alone and its cells creep 0.25 m a map along the hull
+    // (partial detections of a hull at the edge of the view): its track moves at about 1.25 m/s,
+    // fast enough for a guide window.
+    for k in 0..15u64 {
+        let mut cells = open_water(&grid);
+        let y = -3.5 + 0.25 * k as f64;
+        paint_hull_rim(&grid, &mut cells, [24.0, y], [0.0, 1.0], 200);
+        feed(&mut t, grid, k, &cells, &mut list);
+    }
+    let creeping =
+        confirmed_near(&list, [24.0, 0.0], 2.0).unwrap_or_else(|| panic!("{:?}", list.as_slice()));
+    let speed = creeping.velocity[0].hypot(creeping.velocity[1]);
+    assert!((1.0..1.5).contains(&speed), "{creeping:?}");
+    // Then the bank behind it comes into view, joined to it by the range smear: the component
+    // is cut all the same, and the boat keeps its contact, standing.
+    for k in 15..25u64 {
+        let cells = bank_with_moored_boat(&grid, -20.0, 0.0);
+        feed(&mut t, grid, k, &cells, &mut list);
+    }
+    let moored = confirmed_near(&list, [24.0, 0.0], 1.5);
+    assert!(
+        moored.is_some_and(|c| c.id == creeping.id && c.velocity == [0.0, 0.0]),
+        "{:?}",
+        confirmed(&list)
+    );
+}
