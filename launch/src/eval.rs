@@ -71,6 +71,9 @@ const SIGMA_D: f64 = 0.25;
 #[derive(Default)]
 struct RangeBin {
     errors: Vec<f64>,
+    /// The errors of pixels on boats: small objects over water, where a matching block that takes
+    /// in the closer water below reads them too close.
+    boat_errors: Vec<f64>,
     truth_pixels: u64,
 }
 
@@ -338,10 +341,15 @@ fn eval_scenario(
             let rms = (!errors.is_empty())
                 .then(|| (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt());
             let abs: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
+            let boat_errors = bin.map(|b| b.boat_errors.as_slice()).unwrap_or(&[]);
             json!({"range_m": z,
                    "pixels": errors.len(),
                    "density": bin.map(|b| errors.len() as f64 / b.truth_pixels.max(1) as f64),
                    "median_abs_error_m": percentile(&abs, 0.5),
+                   // Signed (estimate minus truth): a bias, not noise, shows here.
+                   "median_error_m": percentile(errors, 0.5),
+                   "boat_pixels": boat_errors.len(),
+                   "boat_median_error_m": percentile(boat_errors, 0.5),
                    "rms_error_m": rms,
                    "theoretical_sigma_m": (metrics.focal_baseline > 0.0)
                         .then(|| z * z * SIGMA_D / metrics.focal_baseline)})
@@ -430,7 +438,11 @@ fn compare(m: &mut Metrics, h: &messages::DisparityHeader, estimate: &[f32], tru
         let entry = m.bins.entry(bin).or_default();
         entry.truth_pixels += 1;
         if d_est.is_finite() && d_est > 0.0 {
-            entry.errors.push(fb / d_est as f64 - z_true);
+            let error = fb / d_est as f64 - z_true;
+            entry.errors.push(error);
+            if label as u8 == messages::truth_class::BOAT {
+                entry.boat_errors.push(error);
+            }
         }
     }
 }
@@ -701,6 +713,24 @@ fn in_view(c: &serde_json::Value) -> String {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn boat_pixels_read_too_close_show_as_a_negative_signed_median_of_their_own() {
+        use messages::truth_class as class;
+        // f B = 100 px m: disparity 1 px is 100 m. A boat pixel read at 1.25 px (80 m), two
+        // terrain pixels right.
+        let mut h = messages::DisparityHeader::default();
+        (h.camera.fx, h.camera.baseline_m) = (100.0, 1.0);
+        let estimate = [1.25, 1.0, 1.0];
+        let labels = [class::BOAT, class::TERRAIN, class::TERRAIN].map(f32::from);
+        let truth: Vec<f32> = [1.0; 3].into_iter().chain(labels).collect();
+        let mut m = Metrics::default();
+        compare(&mut m, &h, &estimate, &truth);
+        let bin = &m.bins[&RANGE_BINS.iter().position(|&z| z == 100.0).unwrap()];
+        assert_eq!(bin.boat_errors, [-20.0]);
+        assert_eq!(bin.errors, [-20.0, 0.0, 0.0]);
+        assert_eq!(percentile(&bin.errors, 0.5), Some(0.0));
+    }
 
     #[test]
     fn the_boats_line_names_each_boat_with_its_frames() {
