@@ -71,8 +71,8 @@ const SIGMA_D: f64 = 0.25;
 #[derive(Default)]
 struct RangeBin {
     errors: Vec<f64>,
-    /// The errors of pixels on boats: small objects over water, where a matching block that takes
-    /// in the closer water below reads them too close.
+    /// The errors of pixels on boats alone: small objects over water, whose bias the bin's banks
+    /// and trees would hide.
     boat_errors: Vec<f64>,
     truth_pixels: u64,
 }

@@ -1264,7 +1264,8 @@ const FRAGMENT_MARGIN_M: f64 = 3.0;
 /// as the detector's `split_min_m`. A bank's track, 30x68 m, took every detection within 37 m of
 /// its centre for a piece of itself, and the boats moored along the bank never had a track of
 /// their own (cluttered_river; capped at 15 m, more false tracks: ARCHITECTURE.md). A track no
-/// larger keeps the components reaching into its guide window whole.
+/// larger may keep the components reaching into its guide window whole
+/// ([`keeps_components_whole`]).
 const FRAGMENT_MAX_EXTENT_M: f64 = 30.0;
 
 /// Whether `position` (measured with covariance `r`) lies on the object of track `t`: inside its
