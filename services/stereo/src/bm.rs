@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 #[cfg(test)]
-use crate::disparity::{argmin_lr, argmin_lr_partial, subpixel};
+use crate::disparity::{argmin_lr, argmin_lr_partial, subpixel_equiangular};
 use crate::disparity::{
     argmin_lr_from, argmin_lr_partial_from, check_frame, check_ndisp, is_unique, lr_check_row,
     DisparityMap, DisparityMatcher, MatchError, DISP_SCALE, INVALID,
@@ -730,7 +730,7 @@ fn match_row(
             continue;
         }
         best[xc] = d as u16;
-        out[xc] = subpixel(sad, dmax, d);
+        out[xc] = subpixel_equiangular(sad, dmax, d);
     }
     lr_check_row(out, best, md, p.lr_max_diff);
 }
@@ -1099,10 +1099,10 @@ fn finish_pixel(
     o.out[xc] = v;
 }
 
-/// `subpixel` with a float division, which is faster than the integer one: the same result,
-/// because |num / den| <= 8 with den < 2^19 keeps the quotient at least 2^-20 away from a
-/// rounding boundary unless it is on one exactly, where f32 is exact (and `round` also rounds
-/// halves away from zero). The tests compare it with `subpixel` through the reference path.
+/// `subpixel_equiangular` with a float division, which is faster than the integer one: the
+/// same result, because |num / den| <= 8 with den < 2^18 keeps the quotient at least 2^-20 away
+/// from a rounding boundary unless it is on one exactly, where f32 is exact (and `round` also
+/// rounds halves away from zero). The tests compare the two through the reference path.
 #[inline(always)]
 fn subpixel_f32(costs: &[u16], dmax: usize, d: usize) -> i16 {
     let base = (d as i32) * DISP_SCALE as i32;
@@ -1110,7 +1110,7 @@ fn subpixel_f32(costs: &[u16], dmax: usize, d: usize) -> i16 {
         return base as i16;
     }
     let (p, c, n) = (costs[d - 1] as i32, costs[d] as i32, costs[d + 1] as i32);
-    let den = 2 * (p + n - 2 * c);
+    let den = 2 * (p.max(n) - c);
     if den <= 0 {
         return base as i16;
     }
@@ -1486,7 +1486,7 @@ mod tests {
                     let costs = [p, c, q];
                     assert_eq!(
                         subpixel_f32(&costs, 2, 1),
-                        subpixel(&costs, 2, 1),
+                        subpixel_equiangular(&costs, 2, 1),
                         "{costs:?}"
                     );
                     n += 1;
@@ -1502,7 +1502,7 @@ mod tests {
         ] {
             assert_eq!(
                 subpixel_f32(&costs, 2, 1),
-                subpixel(&costs, 2, 1),
+                subpixel_equiangular(&costs, 2, 1),
                 "{costs:?}"
             );
         }
