@@ -201,7 +201,10 @@ fn recorded(dir: &Path, scenarios: &Path) -> anyhow::Result<Examples> {
             detector.detect(
                 &header.grid,
                 &cells,
-                &cfg.detect_params(&header.grid),
+                &cfg.detect_params(
+                    &header.grid,
+                    [header.vessel.position[0], header.vessel.position[1]],
+                ),
                 &mut detections,
             );
             labelled.clear();

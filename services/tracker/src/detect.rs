@@ -118,6 +118,42 @@ pub struct DetectParams {
     /// A component larger than this (cells, either axis) is split where it is dense (see
     /// [`Detector::detect`]); `u32::MAX` never splits.
     pub split_min_cells: u32,
+    /// Along the line of sight from the vessel, cells also link across a gap that grows with
+    /// the stereo range error (see [`LosLink`]); `None` links `link_cells` every way.
+    pub los_link: Option<LosLink>,
+}
+
+/// A far object maps as fragments strung along the line of sight: stereo range error grows
+/// with the square of range, and a boat 70 m out read at 2-3 m either side of its hull gave
+/// pieces of 1-8 cells, each a tentative track of its own, none confirmed. Two cells link when
+/// their offset lies within `link_cells` across the line of sight and within
+/// `max(link_cells, sigmas * sigma(range))` along it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LosLink {
+    /// The vessel, in cells (fractional column and row of the grid).
+    pub origin: [f64; 2],
+    /// Range sigma = `sigma_cells[0] + sigma_cells[1] * range`, range and sigma in cells.
+    pub sigma_cells: [f64; 2],
+    pub sigmas: f64,
+    /// Cap on the along-line link (cells).
+    pub max_cells: u32,
+}
+
+impl LosLink {
+    /// The largest link of a cell at (`x`, `y`) and the unit line of sight there.
+    fn at(&self, x: f64, y: f64, link: i64) -> (i64, [f64; 2]) {
+        let (dx, dy) = (x - self.origin[0], y - self.origin[1]);
+        let r = dx.hypot(dy);
+        let along = (self.sigmas * (self.sigma_cells[0] + self.sigma_cells[1] * r))
+            .min(self.max_cells as f64)
+            .floor() as i64;
+        let u = if r > 0.0 {
+            [dx / r, dy / r]
+        } else {
+            [1.0, 0.0]
+        };
+        (along.max(link), u)
+    }
 }
 
 #[derive(Default)]
@@ -222,6 +258,7 @@ impl Detector {
             max,
             link_cells,
             split_min_cells,
+            los_link,
         } = *params;
         let link = link_cells.max(1) as i64;
         out.clear();
@@ -293,8 +330,17 @@ impl Detector {
                 c1 = c1.max(x);
                 r0 = r0.min(y);
                 r1 = r1.max(y);
-                for dy in -link..=link {
-                    for dx in -link..=link {
+                let (reach, los) = los_link.map_or((link, [1.0, 0.0]), |l| {
+                    l.at(x as f64 + 0.5, y as f64 + 0.5, link)
+                });
+                for dy in -reach..=reach {
+                    for dx in -reach..=reach {
+                        if reach > link
+                            && (dx.abs() > link || dy.abs() > link)
+                            && (dx as f64 * los[1] - dy as f64 * los[0]).abs() > link as f64
+                        {
+                            continue;
+                        }
                         let (nx, ny) = (x as i64 + dx, y as i64 + dy);
                         if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
                             continue;
@@ -541,6 +587,7 @@ mod tests {
             max: 4,
             link_cells: 1,
             split_min_cells: u32::MAX,
+            los_link: None,
         };
         Detector::new().detect(&grid, &cells, &params, &mut out);
         let east = out.iter().find(|d| d.position[0] > 10.0).unwrap();
@@ -607,6 +654,7 @@ mod tests {
             max: 16,
             link_cells: 3,
             split_min_cells,
+            los_link: None,
         };
         d.detect(&grid, &cells, &params(u32::MAX), &mut out);
         assert_eq!(out.len(), 1, "{out:?}");
@@ -670,6 +718,7 @@ mod tests {
             max,
             link_cells,
             split_min_cells: u32::MAX,
+            los_link: None,
         };
         d.detect(&grid, &cells, &params(128, 1, 16, 1), &mut out);
         assert_eq!(out.len(), 2);
@@ -696,6 +745,63 @@ mod tests {
         assert_eq!(out[0].cells, 11);
     }
 
+    /// Two fragments of a boat 70 m out, 2 m apart: along the line of sight (the stereo range
+    /// smear) they are one detection, across it two, and without the line-of-sight link two.
+    #[test]
+    fn fragments_far_out_link_along_the_line_of_sight_not_across_it() {
+        // 20 m square centred 70 m east of the vessel at the origin, 0.5 m cells.
+        let grid = GridGeometry {
+            width: 40,
+            height: 40,
+            resolution_m: 0.5,
+            center: [70.0, 0.0],
+        };
+        let vessel = [0.0, 0.0];
+        let los = LosLink {
+            origin: [
+                (vessel[0] - grid.center[0]) / 0.5 + 20.0,
+                (vessel[1] - grid.center[1]) / 0.5 + 20.0,
+            ],
+            // 0.3 m + 0.03 per metre (2.4 m at 70 m), 1.5 sigmas, capped at 3 m.
+            sigma_cells: [0.6, 0.03],
+            sigmas: 1.5,
+            max_cells: 6,
+        };
+        let params = |los_link| DetectParams {
+            threshold: 128,
+            min_cells: 1,
+            max: 16,
+            link_cells: 3,
+            split_min_cells: u32::MAX,
+            los_link,
+        };
+        let pair = |gap: (usize, usize)| {
+            let mut cells = vec![MapCell::default(); 1600];
+            for (x, y) in [
+                (10, 20),
+                (11, 20),
+                (10 + gap.0, 20 + gap.1),
+                (11 + gap.0, 20 + gap.1),
+            ] {
+                cells[y * 40 + x].hazard = 200;
+            }
+            cells
+        };
+        let mut d = Detector::new();
+        let mut out = Vec::new();
+        // 4 cells (2 m) apart in x, the line of sight (east); then in y, across it.
+        d.detect(&grid, &pair((5, 0)), &params(Some(los)), &mut out);
+        assert_eq!(out.len(), 1, "{out:?}");
+        assert_eq!(out[0].cells, 4);
+        d.detect(&grid, &pair((0, 5)), &params(Some(los)), &mut out);
+        assert_eq!(out.len(), 2, "{out:?}");
+        d.detect(&grid, &pair((5, 0)), &params(None), &mut out);
+        assert_eq!(out.len(), 2, "{out:?}");
+        // 4 m apart along the line of sight: beyond the 3 m cap.
+        d.detect(&grid, &pair((9, 0)), &params(Some(los)), &mut out);
+        assert_eq!(out.len(), 2, "{out:?}");
+    }
+
     /// 20 m x 10 m around the origin, 0.5 m cells (row 10 is y = 0.25).
     fn guide_test_grid() -> GridGeometry {
         GridGeometry {
@@ -713,6 +819,7 @@ mod tests {
         max: 16,
         link_cells: 1,
         split_min_cells: u32::MAX,
+        los_link: None,
     };
 
     #[test]

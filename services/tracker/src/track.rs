@@ -5,7 +5,7 @@
 
 use crate::classify::Model;
 use crate::clutter::ClutterMap;
-use crate::detect::{DetectParams, Detection, Detector, GuideThresholds, GuideWindow};
+use crate::detect::{DetectParams, Detection, Detector, GuideThresholds, GuideWindow, LosLink};
 use messages::{
     contact_class, Contact, ContactList, GridGeometry, Header, MapCell, WorldMapHeader,
     MAX_CONTACTS,
@@ -38,6 +38,9 @@ pub struct TrackerConfig {
     pub min_cells: u32,
     /// Hazard cells closer than this (m) belong to one component (0.5 m cells: 0.5 = 8-connected).
     pub link_m: f64,
+    /// Along the line of sight cells also link across this many range sigmas (`range_sigma`;
+    /// at most 3 m), see [`crate::detect::LosLink`]; 0 turns it off.
+    pub link_range_sigmas: f64,
     /// A component larger than this (m, either axis) is split where it is dense: a bank with
     /// boats moored along it, joined to it by the stereo smear, gives a detection per boat and
     /// one for the rest (see [`crate::detect::Detector::detect`]); compact parts up to half this
@@ -123,9 +126,21 @@ pub struct TrackerConfig {
 }
 
 impl TrackerConfig {
-    /// What the detector looks for in a map of `grid` (`link_m` in cells).
-    pub fn detect_params(&self, grid: &GridGeometry) -> DetectParams {
+    /// What the detector looks for in a map of `grid` seen from `vessel` (ENU; `link_m` in
+    /// cells).
+    pub fn detect_params(&self, grid: &GridGeometry, vessel: [f64; 2]) -> DetectParams {
+        let res = grid.resolution_m;
+        let los_link = (self.link_range_sigmas > 0.0).then(|| LosLink {
+            origin: [
+                (vessel[0] - grid.center[0]) / res + grid.width as f64 / 2.0,
+                (vessel[1] - grid.center[1]) / res + grid.height as f64 / 2.0,
+            ],
+            sigma_cells: [self.range_sigma[0] / res, self.range_sigma[1]],
+            sigmas: self.link_range_sigmas,
+            max_cells: (LOS_LINK_MAX_M / res).round() as u32,
+        });
         DetectParams {
+            los_link,
             threshold: self.hazard_threshold,
             min_cells: self.min_cells,
             max: self.max_detections,
@@ -160,6 +175,7 @@ impl Default for TrackerConfig {
             guide_margin_m: 2.0,
             min_cells: 1,
             link_m: 0.5,
+            link_range_sigmas: 0.0,
             // Above a far boat's smear (up to 25 m along the line of sight at 70 m; split at 15 m,
             // open_water_crossing's crossing boat lost 8 of its 17 frames in view), below a
             // bank's extent (ARCHITECTURE.md, moored boats). As `FRAGMENT_MAX_EXTENT_M`.
@@ -380,6 +396,10 @@ impl Track {
     }
 }
 
+/// See [`TrackerConfig::link_range_sigmas`]: a boat's length, so that two boats in line are
+/// not one.
+const LOS_LINK_MAX_M: f64 = 3.0;
+
 /// Detections a tentative track keeps for its constant-velocity fit: the longest confirmation
 /// window's hits.
 const FIT_FIXES: usize = 8;
@@ -464,6 +484,9 @@ impl Tracker {
         }
         if !(cfg.link_m > 0.0 && cfg.link_m <= 10.0) {
             return bad("link_m must be within (0, 10]");
+        }
+        if !(cfg.link_range_sigmas >= 0.0 && cfg.link_range_sigmas.is_finite()) {
+            return bad("link_range_sigmas must be finite and >= 0 (0 turns it off)");
         }
         if cfg.split_min_m.is_nan() || cfg.split_min_m <= 0.0 {
             return bad("split_min_m must be > 0 (inf never splits)");
@@ -587,7 +610,9 @@ impl Tracker {
                     keep_whole: keeps_components_whole(t),
                 }),
         );
-        let params = self.cfg.detect_params(&g);
+        let params = self
+            .cfg
+            .detect_params(&g, [hdr.vessel.position[0], hdr.vessel.position[1]]);
         self.detector
             .detect(&g, cells, &params, &mut self.detections);
         // A weak component needs some size to stand for a boat rather than a speck of noise,

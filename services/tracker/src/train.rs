@@ -209,6 +209,7 @@ pub fn label_detections(
         max: 4096,
         link_cells: 1,
         split_min_cells: u32::MAX,
+        los_link: None,
     };
     detector.detect(grid, cells, &params, &mut dets);
     // Majority owner per detection: the owner of the cells nearest its centroid and extent box.
