@@ -335,9 +335,12 @@ impl Detector {
                 });
                 for dy in -reach..=reach {
                     for dx in -reach..=reach {
+                        // Beyond the square of `link`: only offsets near the line of sight, and
+                        // no farther along it than `reach` (the square's corners lie farther).
                         if reach > link
                             && (dx.abs() > link || dy.abs() > link)
-                            && (dx as f64 * los[1] - dy as f64 * los[0]).abs() > link as f64
+                            && ((dx as f64 * los[1] - dy as f64 * los[0]).abs() > link as f64
+                                || (dx as f64 * los[0] + dy as f64 * los[1]).abs() > reach as f64)
                         {
                             continue;
                         }
@@ -799,6 +802,27 @@ mod tests {
         assert_eq!(out.len(), 2, "{out:?}");
         // 4 m apart along the line of sight: beyond the 3 m cap.
         d.detect(&grid, &pair((9, 0)), &params(Some(los)), &mut out);
+        assert_eq!(out.len(), 2, "{out:?}");
+        // The same 70 m out to the north-east: 2.8 m apart along the diagonal line of sight link,
+        // 4.2 m (within the square of the 3 m cap, beyond the cap along the line) do not.
+        let diagonal = GridGeometry {
+            center: [49.5, 49.5],
+            ..grid
+        };
+        let los = LosLink {
+            origin: [-99.0 + 20.0, -99.0 + 20.0],
+            ..los
+        };
+        let pair = |gap: usize| {
+            let mut cells = vec![MapCell::default(); 1600];
+            for (x, y) in [(10, 10), (11, 11), (11 + gap, 11 + gap)] {
+                cells[y * 40 + x].hazard = 200;
+            }
+            cells
+        };
+        d.detect(&diagonal, &pair(4), &params(Some(los)), &mut out);
+        assert_eq!(out.len(), 1, "{out:?}");
+        d.detect(&diagonal, &pair(6), &params(Some(los)), &mut out);
         assert_eq!(out.len(), 2, "{out:?}");
     }
 
