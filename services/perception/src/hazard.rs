@@ -90,6 +90,11 @@ pub struct SpatialConfig {
     pub min_obstacle_height_m: f32,
     /// Disparity noise (px): points of one surface smear over `2 z^2 sigma / (f B)` metres of range.
     pub disparity_sigma_px: f32,
+    /// A cell is also isolated when its 3x3 block holds fewer elevated points than this share of
+    /// what `min_obstacle_height_m` of surface would give in one cell at that range (0: off). Close
+    /// in, a real surface gives hundreds of points a cell; canopy mismatches a bank's trees throw
+    /// 8-10 m ahead, one point a cell at 5-6 m, support each other as neighbours and rated 0.6-0.8.
+    pub sparse_max_fraction: f32,
 }
 
 impl Default for SpatialConfig {
@@ -99,6 +104,7 @@ impl Default for SpatialConfig {
             min_expected_points: 3.0,
             min_obstacle_height_m: 0.5,
             disparity_sigma_px: 0.3,
+            sparse_max_fraction: 0.0,
         }
     }
 }
@@ -239,6 +245,12 @@ impl HazardConfig {
         }
         if p.max_height_m.is_nan() || p.min_height_m.is_nan() || p.max_height_m <= p.min_height_m {
             return Err("projection needs min_height_m < max_height_m".into());
+        }
+        let sf = self.spatial.sparse_max_fraction;
+        if !(sf.is_finite() && (0.0..=1.0).contains(&sf)) {
+            return Err(format!(
+                "spatial.sparse_max_fraction must be within [0, 1], got {sf}"
+            ));
         }
         if !(self.temporal.tau_s >= 0.0 && self.temporal.max_gap_s > 0.0) {
             return Err("temporal needs tau_s >= 0 and max_gap_s > 0".into());
@@ -805,13 +817,15 @@ impl HazardMapper {
         for &cell in &self.touched {
             let s = &self.stats[cell as usize];
             let (col, row) = ((cell as i64) % gw, (cell as i64) / gw);
-            // Elevated neighbours in this frame (8-neighbourhood).
-            let mut neighbours = 0u32;
+            // Elevated neighbours in this frame (8-neighbourhood), and their elevated points.
+            let (mut neighbours, mut block_elevated) = (0u32, s.elevated);
             for dr in -1..=1i64 {
                 for dc in -1..=1i64 {
                     let (c2, r2) = (col + dc, row + dr);
                     if (dc, dr) != (0, 0) && c2 >= 0 && r2 >= 0 && c2 < gw && r2 < gh {
-                        neighbours += (self.stats[(r2 * gw + c2) as usize].elevated > 0) as u32;
+                        let e = self.stats[(r2 * gw + c2) as usize].elevated;
+                        neighbours += (e > 0) as u32;
+                        block_elevated += e;
                     }
                 }
             }
@@ -824,9 +838,10 @@ impl HazardMapper {
             let density = (f * res / (range * cs)) * (f / (range * rs)) / smear;
             let expected = density * sp.min_obstacle_height_m;
             let isolated = s.elevated > 0
-                && s.elevated <= sp.isolated_max_points
-                && neighbours == 0
-                && expected >= sp.min_expected_points;
+                && (s.elevated <= sp.isolated_max_points
+                    && neighbours == 0
+                    && expected >= sp.min_expected_points
+                    || (block_elevated as f32) < sp.sparse_max_fraction * expected);
             isolated_cells += isolated as usize;
             let key = [corner[0] + col, corner[1] + row];
             let history = recall(memory, grid, key, stamp, tau);

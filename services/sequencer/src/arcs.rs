@@ -65,6 +65,10 @@ pub struct ArcConfig {
     /// When every arc is blocked somewhere, the boat slows down and takes the arc free for at least
     /// this long that points closest to the goal; only when none is, it brakes and turns away.
     pub near_m: f64,
+    /// Length (m) of the lane astern of the boat's reference point that must hold no hazard before
+    /// it backs off (`control.back_off_m`): the distance it backs, its half length aft of the
+    /// reference point and a margin. The lane is as wide as the hull plus the safety margin.
+    pub astern_m: f64,
     /// Extra clearance kept from a moving contact's predicted hull (m), on top of the corridor.
     pub moving_margin_m: f64,
     /// While following, hazards and contacts this close (m) to the target's predicted position are
@@ -162,6 +166,7 @@ impl Default for ArcConfig {
             moving_min_age_s: 2.0,
             contact_max_extent_m: 15.0,
             near_m: 15.0,
+            astern_m: 10.0,
             moving_margin_m: 2.0,
             followed_exempt_m: 8.0,
             followed_wake_m: 40.0,
@@ -216,6 +221,7 @@ impl ArcConfig {
             ("moving_min_age_s", self.moving_min_age_s),
             ("contact_max_extent_m", self.contact_max_extent_m),
             ("near_m", self.near_m),
+            ("astern_m", self.astern_m),
             ("moving_margin_m", self.moving_margin_m),
             ("followed_exempt_m", self.followed_exempt_m),
             ("followed_wake_m", self.followed_wake_m),
@@ -295,6 +301,8 @@ pub struct Blocked {
     /// Hazards blocking an arc within `near_m`, to port (y > 0) and to starboard.
     pub port: u32,
     pub starboard: u32,
+    /// A hazard lies in the lane astern ([`ArcConfig::astern_m`]): the boat must not back off.
+    pub astern: bool,
     /// A boat meets us head-on: keep to starboard of this world course (rad, ENU), the
     /// reciprocal of the boat's (see [`ArcConfig::head_on_max_course_deg`]).
     pub keep_starboard: Option<f64>,
@@ -308,6 +316,7 @@ impl Blocked {
         self.near |= other.near;
         self.port += other.port;
         self.starboard += other.starboard;
+        self.astern |= other.astern;
         self.keep_starboard = self.keep_starboard.or(other.keep_starboard);
     }
 }
@@ -619,6 +628,7 @@ impl ArcSet {
     ) -> Blocked {
         let (s, c) = yaw.sin_cos();
         let (ox, oy) = (origin[0] - vessel[0], origin[1] - vessel[1]);
+        let astern_half_width = self.cfg.vessel_width_m / 2.0 + self.cfg.safety_margin_m;
         let mut out = Blocked::default();
         for h in hazards {
             let (dx, dy) = (h[0] as f64 + ox, h[1] as f64 + oy);
@@ -627,6 +637,10 @@ impl ArcSet {
             }
             // World offset -> body frame (rotate by -yaw).
             let body = [c * dx + s * dy, -s * dx + c * dy];
+            if body[0] <= 0.0 && body[0] >= -self.cfg.astern_m && body[1].abs() <= astern_half_width
+            {
+                out.astern = true;
+            }
             let Some(k) = self.table_index(body) else {
                 continue;
             };
@@ -875,6 +889,31 @@ mod tests {
         assert_ne!(set.arcs_at(p) & 0b100, 0);
         assert_eq!(set.arcs_at(p) & 0b001, 0);
         assert!(set.arcs()[2].direction > 0.0 && set.arcs()[0].direction < 0.0);
+    }
+
+    #[test]
+    fn only_a_hazard_in_the_lane_astern_forbids_backing_off() {
+        let set = ArcSet::new(&ArcConfig::default(), 0.5).unwrap();
+        // The vessel heads north (yaw = pi/2) from the origin; the lane astern is 10 m long and
+        // 3.5 m either side of the keel line.
+        let astern = |at: [f32; 2]| {
+            set.blocked(&[at], [0.0, 0.0], [0.0, 0.0], std::f64::consts::FRAC_PI_2)
+                .astern
+        };
+        assert!(astern([0.0, -6.0]), "dead astern");
+        assert!(astern([3.0, -9.5]), "on the quarter, inside the lane");
+        assert!(!astern([0.0, 6.0]), "ahead");
+        assert!(!astern([5.0, -4.0]), "abeam of the lane");
+        assert!(!astern([0.0, -12.0]), "beyond it");
+        // Rotated with the vessel: heading east, north of it is abeam.
+        assert!(
+            !set.blocked(&[[0.0, -6.0]], [0.0, 0.0], [0.0, 0.0], 0.0)
+                .astern
+        );
+        assert!(
+            set.blocked(&[[-6.0, 0.0]], [0.0, 0.0], [0.0, 0.0], 0.0)
+                .astern
+        );
     }
 
     #[test]

@@ -110,7 +110,16 @@ pub struct Sequencer {
     watchdog: Watchdog,
     runner: Runner,
     controller: Controller,
+    /// Backing off from hazards close ahead, while it lasts.
+    back_off: Option<BackOff>,
     last_cycle_ns: Option<u64>,
+}
+
+/// A boat boxed in close ahead backing off: where it started and the rudder it holds.
+#[derive(Debug, Clone, Copy)]
+struct BackOff {
+    from: [f64; 2],
+    rudder: f64,
 }
 
 impl Sequencer {
@@ -132,6 +141,7 @@ impl Sequencer {
             watchdog: Watchdog::new(&cfg.watchdog),
             runner: Runner::new(cfg.control.max_speed_mps),
             controller: Controller::default(),
+            back_off: None,
             last_cycle_ns: None,
             cfg,
         })
@@ -290,6 +300,7 @@ impl Sequencer {
         let (mode, (rudder, throttle)) = match self.ins.filter(|_| stale == 0) {
             None => {
                 // The mission's state machine is frozen while inputs are stale.
+                self.back_off = None;
                 (
                     command_mode::SAFE_STOP,
                     self.controller.stop(&self.cfg.control, dt),
@@ -382,7 +393,10 @@ impl Sequencer {
                     )),
                 };
                 match guidance {
-                    None => (command_mode::IDLE, self.controller.stop(cfg, dt)),
+                    None => {
+                        self.back_off = None;
+                        (command_mode::IDLE, self.controller.stop(cfg, dt))
+                    }
                     Some(g) => {
                         status.goal = g.goal;
                         status.goal_distance_m = g.range_m;
@@ -558,7 +572,8 @@ impl Sequencer {
 
     /// Avoidance on top of the behaviour's guidance: the free arc closest to the desired course.
     /// With every arc blocked somewhere, slow down along the arc that is free close in and closest to
-    /// the course; with none free close in, brake and turn away from the side with more obstacles.
+    /// the course; with none free close in, brake and turn away from the side with more obstacles,
+    /// and once stopped back off if the water astern is clear (`control.back_off_m`).
     fn steer(
         &mut self,
         own: &OwnState,
@@ -570,6 +585,7 @@ impl Sequencer {
         let cfg = &self.cfg.control;
         if g.speed_mps <= 0.0 {
             // Drifting on station: nothing to avoid.
+            self.back_off = None;
             return (
                 command_mode::NAVIGATING,
                 self.controller.step(cfg, own, &g, dt),
@@ -586,6 +602,21 @@ impl Sequencer {
             if (blocked.near | port) & self.arcs.all() != self.arcs.all() {
                 blocked.near |= port;
             }
+        }
+        if let Some(back) = self.back_off {
+            // Until it has backed its distance, or an arc is free all along, or the lane astern
+            // fills: ending at the first arc free close in would stop it again a metre on.
+            let backed = (own.position[0] - back.from[0]).hypot(own.position[1] - back.from[1]);
+            let all = self.arcs.all();
+            if backed < cfg.back_off_m && blocked.mask & all == all && !blocked.astern {
+                return (
+                    command_mode::BLOCKED,
+                    self.controller
+                        .astern(cfg, own, cfg.back_off_speed_mps, back.rudder, dt),
+                );
+            }
+            self.back_off = None;
+            self.controller.reset_loops();
         }
         let bearing = angle_diff(g.heading, own.yaw);
         if let Some(arc) = self.chooser.choose(&self.arcs, blocked.mask, bearing) {
@@ -638,17 +669,31 @@ impl Sequencer {
         // Brake to a stop at once and turn away from the side with more close obstacles, but
         // never to port of a boat met head-on: the boat still runs on while it brakes, and on
         // cluttered_river a port turn here took it across the bow of the boat it was meeting.
+        let away = if blocked.keep_starboard.is_some() || blocked.port > blocked.starboard {
+            -cfg.max_rudder_rad
+        } else {
+            cfg.max_rudder_rad
+        };
+        if own.speed_mps <= BRAKE_UNTIL_MPS && cfg.back_off_speed_mps > 0.0 && !blocked.astern {
+            // Stopped: back off with the rudder the other way, which swings the bow the same way.
+            let back = BackOff {
+                from: own.position,
+                rudder: -away,
+            };
+            self.back_off = Some(back);
+            self.controller.reset_loops();
+            return (
+                command_mode::BLOCKED,
+                self.controller
+                    .astern(cfg, own, cfg.back_off_speed_mps, back.rudder, dt),
+            );
+        }
         let throttle = if own.speed_mps > BRAKE_UNTIL_MPS {
             self.controller.cap_throttle(cfg.brake_throttle_pct);
             cfg.brake_throttle_pct
         } else {
             self.controller.ease_throttle(0.0);
             0.0
-        };
-        let away = if blocked.keep_starboard.is_some() || blocked.port > blocked.starboard {
-            -cfg.max_rudder_rad
-        } else {
-            cfg.max_rudder_rad
         };
         (
             command_mode::BLOCKED,
@@ -702,7 +747,8 @@ fn closest_approach(c: &Contact, own: &OwnState, length_m: f64) -> f64 {
 /// A track this young (s) when the sequencer first meets it was born in this frame or the last.
 const JUST_BORN_S: f64 = 0.5;
 
-/// Braking astern stops below this speed (m/s): astern power on a stopped boat would back it up.
+/// Braking astern stops below this speed (m/s): from there on, astern power backs the boat up, which
+/// only backing off does, under speed control ([`Controller::astern`]).
 const BRAKE_UNTIL_MPS: f64 = 0.3;
 /// On a free arc, the boat brakes astern only when this much (m/s) faster than asked: a smaller
 /// speed error is left to the drag, so the throttle does not swing through astern.

@@ -4,6 +4,7 @@ use messages::{
     command_mode, contact_class, Contact, ContactList, GridGeometry, Header, InsState, MapCell,
     Pose, WorldMapHeader,
 };
+use sequencer::control::{KinematicBoat, OwnState};
 use sequencer::{watchdog, Config, Sequencer};
 
 const MS: u64 = 1_000_000;
@@ -214,10 +215,12 @@ fn every_arc_blocked_close_in_brakes_and_turns_away() {
         "hard to port, away from the starboard obstacles: {}",
         cmd.rudder_rad
     );
-    // Stopped: no more astern power, which would back the boat up.
+    // Stopped, with hazards astern too: no astern power, which would back the boat into them.
+    let mut boxed_in = obstacles.clone();
+    boxed_in.extend((-4..=4).map(|i| (-6.0, i as f64 * 0.5)));
     let t1 = t0 + 41 * 100 * MS;
     seq.on_ins(&ins(t1, 0.0, 0.1)).unwrap();
-    let (h, c) = map(t1, &obstacles);
+    let (h, c) = map(t1, &boxed_in);
     seq.on_map(&h, &c).unwrap();
     let cmd = seq.cycle("test").0;
     assert_eq!(cmd.mode, command_mode::BLOCKED);
@@ -227,11 +230,97 @@ fn every_arc_blocked_close_in_brakes_and_turns_away() {
     // boat up ever faster.
     let t2 = t1 + 100 * MS;
     seq.on_ins(&ins(t2, 0.0, -0.8)).unwrap();
-    let (h, c) = map(t2, &obstacles);
+    let (h, c) = map(t2, &boxed_in);
     seq.on_map(&h, &c).unwrap();
     let cmd = seq.cycle("test").0;
     assert_eq!(cmd.mode, command_mode::BLOCKED);
     assert_eq!(cmd.throttle_pct, 0.0);
+    // The water astern clear: it backs off, under speed control (already going astern at
+    // 0.8 m/s, a little power; at 2 m/s, none).
+    let mut cmd = cmd;
+    for k in 3..18 {
+        let t = t1 + k * 100 * MS;
+        seq.on_ins(&ins(t, 0.0, -0.8)).unwrap();
+        let (h, c) = map(t, &obstacles);
+        seq.on_map(&h, &c).unwrap();
+        let status;
+        (cmd, status) = seq.cycle("test");
+        assert_eq!(cmd.mode, command_mode::BLOCKED);
+        assert_eq!(status.chosen_arc, -1);
+        assert!(cmd.throttle_pct < 0.0, "{}", cmd.throttle_pct);
+    }
+    assert!(
+        cmd.rudder_rad < -0.5,
+        "astern, the rudder hard to starboard swings the bow to port: {}",
+        cmd.rudder_rad
+    );
+    let t = t1 + 18 * 100 * MS;
+    seq.on_ins(&ins(t, 0.0, -2.0)).unwrap();
+    let (h, c) = map(t, &obstacles);
+    seq.on_map(&h, &c).unwrap();
+    let last = seq.cycle("test").0.throttle_pct;
+    assert_eq!(last, 0.0, "backing faster than asked: power off");
+}
+
+/// INS from a kinematic boat's state.
+fn ins_of(stamp_ns: u64, own: &OwnState) -> InsState {
+    InsState {
+        hdr: Header::new(0, stamp_ns, "test"),
+        pose: Pose {
+            position: [own.position[0], own.position[1], 0.0],
+            yaw: own.yaw,
+            ..Default::default()
+        },
+        velocity: [
+            own.speed_mps * own.yaw.cos(),
+            own.speed_mps * own.yaw.sin(),
+            0.0,
+        ],
+        angular_rate: [0.0, 0.0, own.yaw_rate],
+        ..Default::default()
+    }
+}
+
+#[test]
+fn boxed_in_close_ahead_the_stopped_boat_backs_off_and_gets_round() {
+    // Stopped 7 m short of a 12 m wall square across its course, its goal beyond: every arc meets
+    // the wall within `near_m`, and the boat turns no tighter than its turning circle, however
+    // slowly it goes. Ten cycles a second for 60 s against a kinematic boat like the simulator's.
+    let obstacle: Vec<(f64, f64)> = (-12..=12).map(|i| (7.0, i as f64 * 0.5)).collect();
+    let run = |back_off_speed_mps: f64| {
+        let mut cfg = Config::default();
+        cfg.control.back_off_speed_mps = back_off_speed_mps;
+        let mut seq = Sequencer::new(cfg).unwrap();
+        seq.load_mission(EAST).unwrap();
+        let mut boat = KinematicBoat::new([0.0, 0.0], 0.0, seq.config().control.max_speed_mps);
+        let (mut slowest, mut clearance) = (0.0f64, f64::INFINITY);
+        for k in 1..=600u64 {
+            let t = k * 100 * MS;
+            seq.on_ins(&ins_of(t, &boat.state)).unwrap();
+            let (h, c) = map(t, &obstacle);
+            seq.on_map(&h, &c).unwrap();
+            let cmd = seq.cycle("test").0;
+            boat.step(cmd.rudder_rad as f64, cmd.throttle_pct as f64, 0.1);
+            slowest = slowest.min(boat.state.speed_mps);
+            let p = boat.state.position;
+            clearance = obstacle
+                .iter()
+                .map(|o| (o.0 - p[0]).hypot(o.1 - p[1]))
+                .fold(clearance, f64::min);
+        }
+        (boat.state.position, slowest, clearance)
+    };
+    let (position, slowest, clearance) = run(1.0);
+    assert!(slowest < -0.5, "it backed off: slowest {slowest:.2} m/s");
+    assert!(
+        position[0] > 30.0,
+        "round the wall towards the goal: at {position:?}"
+    );
+    assert!(clearance > 2.0, "kept clear of the wall: {clearance:.2} m");
+    // Without backing off it only turns its rudder, and stays where it stopped.
+    let (position, slowest, _) = run(0.0);
+    assert!(slowest > -0.1, "{slowest}");
+    assert!(position[0] < 7.0, "still short of the wall: {position:?}");
 }
 
 #[test]

@@ -240,6 +240,57 @@ fn an_isolated_mismatch_is_dropped_where_an_obstacle_would_give_many_points() {
 }
 
 #[test]
+fn a_sparse_sprinkle_of_high_mismatches_close_in_is_dropped_a_buoy_there_is_not() {
+    // Three neighbouring cells 8.5 m ahead, one wrong disparity each 5.5 m above the water (canopy
+    // mismatches near a bank), and a buoy 9 m out to the left. Each mismatch has an elevated
+    // neighbour, so only the block rule drops them: a real surface there gives hundreds of points.
+    let mut s = Scene::hammerhead(640, 480);
+    let buoy = Cylinder {
+        east: -3.0,
+        north: 8.5,
+        radius: 0.4,
+        height: 1.6,
+    };
+    s.objects.push(buoy);
+    let mut d = Vec::new();
+    s.render(&mut d);
+    for u in [320usize, 356, 392] {
+        d[34 * 640 + u] = 554.0 / 8.5;
+    }
+    let h = s.header(1, "hh_left");
+    let rated = |sparse_max_fraction: f32| {
+        let mut cfg = config();
+        cfg.spatial.sparse_max_fraction = sparse_max_fraction;
+        let mut mapper = HazardMapper::new(cfg, model()).unwrap();
+        let (out, summary) = map(&mut mapper, &h, &d);
+        let g = summary.grid;
+        let (mut sprinkle, mut sprinkle_hazard) = (0, 0);
+        for row in 0..g.height {
+            for col in 0..g.width {
+                let c = out[(row * g.width + col) as usize];
+                if c.max_height_cm > 400 {
+                    sprinkle += 1;
+                    sprinkle_hazard += usize::from(c.hazard >= 128);
+                }
+            }
+        }
+        let (height, buoy_hazard, _) = best_near(&out, &g, buoy.east, buoy.north, 1.0);
+        assert!((height - 1.6).abs() < 0.15, "buoy height {height}");
+        (sprinkle, sprinkle_hazard, buoy_hazard)
+    };
+    let (cells, hazards, buoy_hazard) = rated(0.0);
+    assert_eq!(
+        (cells, hazards),
+        (3, 3),
+        "without the rule the sprinkle is rated a hazard"
+    );
+    assert!(buoy_hazard >= 128);
+    let (cells, hazards, buoy_hazard) = rated(0.1);
+    assert_eq!((cells, hazards), (3, 0), "with it, dropped");
+    assert!(buoy_hazard >= 128, "the buoy stays: {buoy_hazard}");
+}
+
+#[test]
 fn memory_follows_the_world_while_the_vessel_moves() {
     let mut s = Scene::hammerhead(640, 480);
     s.objects.push(Cylinder {
