@@ -8,7 +8,8 @@ pub mod command_mode {
     /// The watchdog found map, contacts or INS stale: throttle is 0.
     pub const SAFE_STOP: u8 = 2;
     /// No arc free along its whole length: slowing along the arc free close in (`chosen_arc` set),
-    /// or, with none, braking and turning away (`chosen_arc` -1).
+    /// or, with none, braking and turning away, then, stopped, backing off astern while the water
+    /// astern is clear (`chosen_arc` -1).
     pub const BLOCKED: u8 = 3;
 }
 
