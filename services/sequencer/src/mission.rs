@@ -9,6 +9,9 @@
 //! type = "goto"
 //! waypoints = [[100.0, 0.0], [100.0, 80.0]]   # ENU metres
 //! radius_m = 5.0                  # acceptance radius (default 5)
+//! pass_m = 20.0                   # optional: a waypoint before the last is also reached once
+//!                                 # the boat has crossed the line through it square to the leg
+//!                                 # no farther than this from it (default 4 x radius_m; 0: never)
 //! speed_mps = 6.0                 # optional
 //! timeout_s = 120.0               # optional, any step
 //! on_timeout = "abort"            # or "next"; any step (default "abort")
@@ -78,6 +81,8 @@ pub enum StepKind {
         waypoints: Vec<[f64; 2]>,
         #[serde(default = "default_radius")]
         radius_m: f64,
+        /// Default `PASS_RADII` x `radius_m`.
+        pass_m: Option<f64>,
         speed_mps: Option<f64>,
     },
     Follow {
@@ -111,6 +116,12 @@ pub enum StepKind {
 fn default_radius() -> f64 {
     5.0
 }
+
+/// A waypoint before the last one counts as passed within this many acceptance radii (see
+/// `pass_m`). The boat turns no tighter than its turning circle (17.5 m in the simulator): a
+/// detour round a boat ahead took one on cluttered_river 20 m abeam of an 8 m waypoint, and it
+/// circled back for it instead of going on.
+const PASS_RADII: f64 = 4.0;
 
 fn default_lost() -> f64 {
     5.0
@@ -281,6 +292,7 @@ fn validate(step: &Step) -> Result<(), Invalid> {
         StepKind::Goto {
             waypoints,
             radius_m,
+            pass_m,
             speed_mps,
         } => {
             if waypoints.is_empty() {
@@ -288,6 +300,11 @@ fn validate(step: &Step) -> Result<(), Invalid> {
             }
             finite("waypoints", &waypoints.concat())?;
             positive("radius_m", *radius_m)?;
+            if let Some(p) = pass_m {
+                if !(p.is_finite() && *p >= 0.0) {
+                    return Err(("pass_m", format!("must be >= 0 and finite, got {p}")));
+                }
+            }
             if let Some(s) = speed_mps {
                 positive("speed_mps", *s)?;
             }
@@ -611,6 +628,9 @@ pub struct Runner {
     step_elapsed_ns: u64,
     last_now: Option<u64>,
     waypoint: usize,
+    /// Where the leg to the current waypoint starts: the previous waypoint, or where the boat was
+    /// when the goto step began.
+    leg_from: Option<[f64; 2]>,
     cruise_speed: f64,
     lock: Option<Lock>,
     /// Maximum speed for behaviours that have no speed of their own.
@@ -625,6 +645,13 @@ pub struct World<'a> {
     pub contacts_stamp_ns: u64,
 }
 
+/// Whether `at` lies beyond the line through `to` square to the leg `from` -> `to` (a leg of no
+/// length has no beyond).
+fn beyond(from: [f64; 2], to: [f64; 2], at: [f64; 2]) -> bool {
+    let leg = [to[0] - from[0], to[1] - from[1]];
+    (at[0] - to[0]) * leg[0] + (at[1] - to[1]) * leg[1] > 0.0
+}
+
 impl Runner {
     pub fn new(max_speed: f64) -> Self {
         Self {
@@ -634,6 +661,7 @@ impl Runner {
             step_elapsed_ns: 0,
             last_now: None,
             waypoint: 0,
+            leg_from: None,
             cruise_speed: 3.0,
             lock: None,
             max_speed,
@@ -756,6 +784,7 @@ impl Runner {
         self.step = index;
         self.step_elapsed_ns = 0;
         self.waypoint = 0;
+        self.leg_from = None;
         self.lock = None;
         if self
             .mission
@@ -821,12 +850,20 @@ impl Runner {
             StepKind::Goto {
                 waypoints,
                 radius_m,
+                pass_m,
                 speed_mps,
             } => {
                 // At most one waypoint per cycle: bounded work even for long lists.
                 let wp = waypoints[self.waypoint];
-                if (wp[0] - own.position[0]).hypot(wp[1] - own.position[1]) <= *radius_m {
+                let from = *self.leg_from.get_or_insert(own.position);
+                let range = (wp[0] - own.position[0]).hypot(wp[1] - own.position[1]);
+                let pass = pass_m.unwrap_or(PASS_RADII * radius_m);
+                let passed = self.waypoint + 1 < waypoints.len()
+                    && range <= pass
+                    && beyond(from, wp, own.position);
+                if range <= *radius_m || passed {
                     self.waypoint += 1;
+                    self.leg_from = Some(wp);
                 }
                 let wp = *waypoints.get(self.waypoint)?;
                 Some(Directive::Goto {
@@ -1059,6 +1096,8 @@ mod tests {
             e.contains("step 2 (goto)") && e.contains("`waypoints`"),
             "{e}"
         );
+        let e = err("[[step]]\ntype = \"goto\"\nwaypoints = [[1.0, 2.0]]\npass_m = -1\n");
+        assert!(e.contains("`pass_m`"), "{e}");
         let e = err("[[step]]\ntype = \"goto\"\nwaypoints = [[1.0, 2.0]]\nspeed_mps = -1\n");
         assert!(e.contains("`speed_mps`") && e.contains("positive"), "{e}");
         let e = err("[[step]]\ntype = \"follow\"\nastern_m = 20\n");
@@ -1129,6 +1168,71 @@ mod tests {
         assert_eq!(r.step_index(), Some(1));
         assert_eq!(r.update(4 * S, &world([100.0, 98.0])), Directive::Idle);
         assert_eq!(r.state(), &RunState::Finished);
+    }
+
+    #[test]
+    fn a_waypoint_passed_abeam_is_reached_but_not_the_last_one_nor_before_it_is_passed() {
+        // Legs from the origin east to (100, 0), then north to (100, 100); radius 5 m, so passing
+        // counts within 20 m.
+        let goal_after = |extra: &str, path: &[[f64; 2]]| {
+            let mut r = Runner::new(10.0);
+            r.load(goto_mission(extra));
+            let mut d = Directive::Idle;
+            for (k, p) in path.iter().enumerate() {
+                d = r.update(k as u64 * S, &world(*p));
+            }
+            match d {
+                Directive::Goto { goal, .. } => goal,
+                d => panic!("{d:?}"),
+            }
+        };
+        let first = [100.0, 0.0];
+        let second = [100.0, 100.0];
+        // 15 m abeam to port, then over the line through the waypoint: passed.
+        assert_eq!(
+            goal_after("", &[[0.0, 0.0], [95.0, 15.0], [101.0, 15.0]]),
+            second
+        );
+        // 15 m abeam but short of the line: not yet.
+        assert_eq!(
+            goal_after("", &[[0.0, 0.0], [95.0, 15.0], [99.0, 15.0]]),
+            first
+        );
+        // Over the line 25 m off, beyond the 20 m: not passed ...
+        assert_eq!(goal_after("", &[[0.0, 0.0], [101.0, 25.0]]), first);
+        // ... unless the mission allows that much, and not at all with `pass_m = 0`.
+        assert_eq!(
+            goal_after("pass_m = 30.0", &[[0.0, 0.0], [101.0, 25.0]]),
+            second
+        );
+        assert_eq!(
+            goal_after("pass_m = 0.0", &[[0.0, 0.0], [101.0, 15.0]]),
+            first
+        );
+        // The leg to the last waypoint starts at the one before: passing the last one abeam does
+        // not end the step.
+        let mut r = Runner::new(10.0);
+        r.load(goto_mission(""));
+        r.update(0, &world([0.0, 0.0]));
+        r.update(S, &world([99.0, 2.0]));
+        let d = r.update(2 * S, &world([90.0, 105.0]));
+        assert!(
+            matches!(d, Directive::Goto { goal, last: true, .. } if goal == second),
+            "{d:?}"
+        );
+        // Out and back (a leg that turns round at the waypoint): nearing it from the start is
+        // not passing it.
+        let mut r = Runner::new(10.0);
+        r.load(
+            Mission::parse("[[step]]\ntype = \"goto\"\nwaypoints = [[100.0, 0.0], [0.0, 0.0]]\n")
+                .unwrap(),
+        );
+        r.update(0, &world([0.0, 0.0]));
+        let d = r.update(S, &world([90.0, 3.0]));
+        assert!(
+            matches!(d, Directive::Goto { goal, .. } if goal == first),
+            "{d:?}"
+        );
     }
 
     #[test]
