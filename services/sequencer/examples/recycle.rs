@@ -73,7 +73,7 @@ fn main() -> anyhow::Result<()> {
     let mut own: Option<InsState> = None;
     let mut contacts_stamp = 0u64;
     // A map waits for the contacts of its frame, as in the service.
-    let mut pending: Option<(WorldMapHeader, Vec<[f32; 2]>)> = None;
+    let mut pending: Option<(WorldMapHeader, Vec<MapCell>)> = None;
     let mut last: Option<(ActuatorCommand, SequencerStatus)> = None;
     let mut contacts = Box::<ContactList>::default();
     let (mut compared, mut same) = (0u64, 0u64);
@@ -102,9 +102,7 @@ fn main() -> anyhow::Result<()> {
             let cells: Vec<MapCell> = unsafe { read_slice(payload) };
             seq.on_map(&header, &cells)
                 .with_context(|| format!("world map at {} ns", header.hdr.stamp_ns))?;
-            seq.arcs()
-                .collect_hazards(&header.grid, &cells, &mut hazards);
-            pending = Some((header, hazards.clone()));
+            pending = Some((header, cells));
         } else {
             let recorded: ActuatorCommand =
                 unsafe { read_value(payload) }.context("short actuator command")?;
@@ -125,7 +123,7 @@ fn main() -> anyhow::Result<()> {
         if !ready {
             continue;
         }
-        let (map, map_hazards) = pending.take().expect("checked above");
+        let (map, cells) = pending.take().expect("checked above");
         let (cmd, status) = seq.cycle("recycle");
         last = Some((cmd, status));
         let t = (map.hdr.stamp_ns - t0.unwrap_or(0)) as f64 * 1e-9;
@@ -133,16 +131,10 @@ fn main() -> anyhow::Result<()> {
             continue;
         }
         let Some(ins) = &own else { continue };
+        // The obstacle offsets the sequencer took from this map, for the maps printed only.
+        seq.arcs().collect_hazards(&map.grid, &cells, &mut hazards);
         print_cycle(
-            &seq,
-            &args,
-            t,
-            ins,
-            &map,
-            &map_hazards,
-            &contacts,
-            &cmd,
-            &status,
+            &seq, &args, t, ins, &map, &hazards, &contacts, &cmd, &status,
         );
     }
     println!(
