@@ -17,6 +17,7 @@ use anyhow::Context;
 use clap::Parser;
 use messages::{ContactList, GroundTruth, MapCell, WorldMapHeader};
 use std::collections::BTreeMap;
+use std::f64::consts::{PI, TAU};
 use std::path::{Path, PathBuf};
 use tracker::Tracker;
 
@@ -104,13 +105,17 @@ fn main() -> anyhow::Result<()> {
             (d[0] * cth + d[1] * s, -d[0] * s + d[1] * cth)
         };
         let own = header.vessel.position;
+        // Off the bow, port positive: in a head's view within the heads' half field of view.
+        let bearing =
+            ((c[1] - own[1]).atan2(c[0] - own[0]) - header.vessel.yaw + PI).rem_euclid(TAU) - PI;
         println!(
-            "{t:.1} object at ({:.1}, {:.1}) heading {:.0} deg {:.1} m/s, {:.1} m from own{}",
+            "{t:.1} object at ({:.1}, {:.1}) heading {:.0} deg {:.1} m/s, {:.1} m from own, {:.0} deg off the bow{}",
             c[0],
             c[1],
             o.pose.yaw.to_degrees(),
             o.velocity[0].hypot(o.velocity[1]),
             (c[0] - own[0]).hypot(c[1] - own[1]),
+            bearing.to_degrees(),
             match same {
                 Some(false) => "  [contacts differ from the recording]",
                 _ => "",
