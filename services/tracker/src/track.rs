@@ -821,14 +821,7 @@ impl Tracker {
             class_score[class as usize % 5] = conf;
             // A peak detection also counts (see `counts_to_confirm`).
             let (counts, peak) = counts_to_confirm(&self.cfg, d);
-            let mut fixes = [Fix::default(); FIT_FIXES];
-            fixes[0] = Fix {
-                t_s: 0.0,
-                at: d.position,
-                own: [own[0], own[1]],
-                spread: [d.along_sd_m, d.across_sd_m],
-            };
-            self.tracks.push(Track {
+            let mut track = Track {
                 id: self.next_id,
                 x: Vector4::new(d.position[0], d.position[1], 0.0, 0.0),
                 p,
@@ -843,16 +836,18 @@ impl Tracker {
                 placed_by_fresh_cells: false,
                 flickering: false,
                 held_still: false,
-                fixes,
-                fix_count: 1,
+                fixes: [Fix::default(); FIT_FIXES],
+                fix_count: 0,
                 confirmed: peak
                     && confirm_rule(&self.cfg, &self.clutter, own, yaw, d.position).0 <= 1,
                 class_score,
                 extent: [d.extent[0] as f32, d.extent[1] as f32, d.height as f32],
-            });
+            };
+            track.push_fix(stamp, d.position, own, d);
             if d.in_large_component {
-                stand_still(self.tracks.last_mut().expect("just pushed"));
+                stand_still(&mut track);
             }
+            self.tracks.push(track);
             self.next_id = self.next_id.wrapping_add(1).max(1);
         }
         self.clutter.end_map(dt);
