@@ -7,6 +7,7 @@
 
 use crate::chaos::Chaos;
 use crate::control::ServiceStatus;
+use crate::eval_tracking::TrackingScore;
 use crate::observe::{MissionGoal, Observation, Observer};
 use crate::pipeline::{PipelineSpec, Source};
 use crate::session::{has_stopped, percentile, Session};
@@ -239,9 +240,12 @@ fn eval_scenario(
         let mut metrics = Metrics::default();
         let mut obs = Observation::new(goal);
         if args.closed_loop {
-            // Tracks on the scenario's shore are shore contacts, not false tracks.
+            // Tracks on the scenario's shore are shore contacts, not false tracks; what is in view
+            // but hidden is scored apart.
             let world = sim::scenario::load_world(scenario)?;
-            if let Some(land) = crate::eval_tracking::TrackingScore::land_of(world) {
+            obs.tracking
+                .set_sight(TrackingScore::sight_of(world.clone()));
+            if let Some(land) = TrackingScore::land_of(world) {
                 obs.tracking.set_land(land);
             }
         }
@@ -561,12 +565,18 @@ pub(crate) fn tracking_totals_line(tracking: &[&serde_json::Value], minutes: f64
     let per_min = |n: u64| n as f64 / minutes.max(f64::MIN_POSITIVE);
     let (false_tracks, objects) = (sum(&["false_tracks"]), sum(&["false_object_tracks"]));
     let counts = |target: &str| {
+        let of =
+            |key: String| format!("{} of {}", sum(&[&key, "detected"]), sum(&[&key, "frames"]));
+        let in_sight = format!("{target}_in_sight");
+        let in_sight = if tracking.iter().any(|t| t[&in_sight].is_object()) {
+            format!(", in sight {}", of(in_sight))
+        } else {
+            String::new()
+        };
         format!(
-            "{} of {} frames (in a head's view {} of {})",
-            sum(&[target, "detected"]),
-            sum(&[target, "frames"]),
-            sum(&[&format!("{target}_in_view"), "detected"]),
-            sum(&[&format!("{target}_in_view"), "frames"]),
+            "{} frames (in a head's view {}{in_sight})",
+            of(target.to_string()),
+            of(format!("{target}_in_view")),
         )
     };
     format!(
@@ -585,10 +595,10 @@ pub(crate) fn tracking_line(t: &serde_json::Value) -> String {
         "tracking: boats within 100 m detected {} of {} frames ({}), markers/buoys within 60 m {} of {} ({}), confirmed tracks {} ({} false, {}/min, of them reported as objects {}, {}/min; {} on the shore), moving-boat speed error p50 {} % ({} % while detected), heading error p50 {} deg, along/cross 3-sigma ratio {}{}",
         t["boats_within_100m"]["detected"],
         t["boats_within_100m"]["frames"],
-        in_view(&t["boats_within_100m_in_view"]),
+        in_view(&t["boats_within_100m_in_view"], &t["boats_within_100m_in_sight"]),
         t["markers_within_60m"]["detected"],
         t["markers_within_60m"]["frames"],
-        in_view(&t["markers_within_60m_in_view"]),
+        in_view(&t["markers_within_60m_in_view"], &t["markers_within_60m_in_sight"]),
         t["confirmed_tracks"],
         t["false_tracks"],
         f(&t["false_tracks_per_min"], 1.0),
@@ -625,10 +635,18 @@ pub(crate) fn boats_by_object_line(t: &serde_json::Value) -> Option<String> {
     listed_line(
         t,
         "boats_within_100m_by_object",
-        "boats within 100 m by truth id, detected of frames (in a head's view)",
+        "boats within 100 m by truth id, detected of frames (in a head's view; in sight)",
         |b| {
+            let in_sight = if b["in_sight"].is_object() {
+                format!(
+                    "; {} of {}",
+                    b["in_sight"]["detected"], b["in_sight"]["frames"]
+                )
+            } else {
+                String::new()
+            };
             format!(
-                "#{}: {} of {} ({} of {})",
+                "#{}: {} of {} ({} of {}{in_sight})",
                 b["id"],
                 b["all"]["detected"],
                 b["all"]["frames"],
@@ -700,13 +718,20 @@ fn follow_held(h: &serde_json::Value) -> String {
     )
 }
 
-/// "in a head's view D of F" for a detection count, or a note that no camera was seen.
-fn in_view(c: &serde_json::Value) -> String {
-    if c.is_object() {
-        format!("in a head's view {} of {}", c["detected"], c["frames"])
-    } else {
-        "no head's view known".to_string()
+/// "in a head's view D of F, in sight D of F" for the detection counts in view and in sight (the
+/// latter left out when not scored), or a note that no camera was seen.
+fn in_view(view: &serde_json::Value, sight: &serde_json::Value) -> String {
+    if !view.is_object() {
+        return "no head's view known".to_string();
     }
+    let mut s = format!(
+        "in a head's view {} of {}",
+        view["detected"], view["frames"]
+    );
+    if sight.is_object() {
+        s += &format!(", in sight {} of {}", sight["detected"], sight["frames"]);
+    }
+    s
 }
 
 #[cfg(test)]

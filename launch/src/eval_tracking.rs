@@ -4,6 +4,9 @@
 //! 3-sigma ratio. Matching and the per-instant metrics are the tracker's own (`tracker::eval`).
 //! The detection targets are also scored over the frames in which the object lay in some stereo
 //! head's field of view (Hammerhead's figures are for what the cameras see), beside all frames.
+//! Over the frames in view, the objects also in sight (not hidden behind the banks, the trees or
+//! another boat: rays traced through the scenario's world) are scored once more, which is what
+//! an image-based ground truth, a box drawn round each object in each frame, counts.
 //! A scripted object that has run aground (a constant-velocity boat that crossed the channel and
 //! sails on through the trees) is no target: its frames are counted apart and not scored.
 
@@ -52,16 +55,46 @@ impl Counts {
     }
 }
 
-/// Counts a frame of a target over all frames, and over those with it in a head's view.
-fn add_frame(all: &mut Counts, seen: &mut Counts, detected: bool, in_view: bool) {
-    all.add(detected);
-    if in_view {
-        seen.add(detected);
+/// A detection target's frames: all of them, those with it in a head's view, and of those the
+/// ones with it in sight.
+#[derive(Default, Clone, Copy)]
+struct TargetCounts {
+    all: Counts,
+    in_view: Counts,
+    in_sight: Counts,
+}
+
+impl TargetCounts {
+    fn add(&mut self, detected: bool, in_view: bool, in_sight: bool) {
+        self.all.add(detected);
+        if in_view {
+            self.in_view.add(detected);
+        }
+        if in_sight {
+            self.in_sight.add(detected);
+        }
     }
 }
 
 /// Whether an ENU point is land (the scenario's terrain above the water).
 pub type LandTest = Box<dyn Fn(f64, f64) -> bool>;
+
+/// Whether a camera at an ENU point sees enough of a true object (by id) at a scenario time (s).
+pub type SightTest = Box<dyn FnMut(f64, [f64; 3], u32) -> bool>;
+
+/// An object is in sight when at least this fraction of the rays aimed at it reach it: a boat
+/// with three quarters of it behind another's hull leaves the stereo a few pixels at most.
+const MIN_VISIBLE_FRACTION: f64 = 0.25;
+
+/// A head's horizontal field of view, (right edge, left edge) azimuth in the body frame (rad,
+/// counter-clockwise from forward), and where its left camera sits on the body (x forward, y
+/// left, z up; m).
+#[derive(Clone, Copy)]
+struct HeadView {
+    right: f64,
+    left: f64,
+    mount: [f64; 3],
+}
 
 /// What a confirmed track looked like when it was first reported confirmed, and how long it lived:
 /// the profile of the false ones says where they come from.
@@ -92,17 +125,13 @@ pub struct TrackingScore {
     /// The same, over the frames with the object in a head's field of view.
     by_range_in_view: BTreeMap<(u8, usize), Counts>,
     by_lengths: BTreeMap<(u8, usize), Counts>,
-    /// Boats within 100 m and markers or buoys within 60 m: the targets.
-    boats_100m: Counts,
-    markers_60m: Counts,
-    /// The same, over the frames in which the object lay in a head's field of view.
-    boats_100m_in_view: Counts,
-    markers_60m_in_view: Counts,
-    /// The boats' counts by truth id (all frames, in view): which boat the misses are on.
-    boats_100m_by_object: BTreeMap<u32, (Counts, Counts)>,
-    /// Horizontal field of view of each stereo head: (right edge, left edge) azimuth in the body
-    /// frame (rad, counter-clockwise from forward), from the disparity images' camera models.
-    views: BTreeMap<String, (f64, f64)>,
+    /// Boats within 100 m and markers or buoys within 60 m: the detection targets.
+    boats_100m: TargetCounts,
+    markers_60m: TargetCounts,
+    /// The boats' counts by truth id: which boat the misses are on.
+    boats_100m_by_object: BTreeMap<u32, TargetCounts>,
+    /// Each stereo head's view, from the disparity images' camera models.
+    views: BTreeMap<String, HeadView>,
     /// Every track reported confirmed, by id.
     lives: BTreeMap<u32, TrackLife>,
     /// Stamp of the first contact list scored (the report's times are relative to it).
@@ -114,6 +143,8 @@ pub struct TrackingScore {
     /// Where the scenario has shore: confirmed tracks seen on it, which are shore contacts (the
     /// classifier's "extended"), not false tracks.
     land: Option<LandTest>,
+    /// Where the scenario's world is at hand: which objects in view are in sight.
+    sight: Option<SightTest>,
     shore_ids: BTreeSet<u32>,
     /// Frames of scored true objects left out because they lay on land.
     aground_frames: u64,
@@ -133,6 +164,21 @@ impl TrackingScore {
         self.land = Some(land);
     }
 
+    /// Scores the targets in sight, too, from now on.
+    pub fn set_sight(&mut self, sight: SightTest) {
+        self.sight = Some(sight);
+    }
+
+    /// A scenario's sight test: rays from the camera through its world at the truth's time.
+    pub fn sight_of(world: sim::World) -> SightTest {
+        let mut sight = sim::Sight::new(world);
+        Box::new(move |t, eye, id| {
+            sight
+                .visible_fraction(t, eye, id as usize)
+                .is_some_and(|f| f >= MIN_VISIBLE_FRACTION)
+        })
+    }
+
     /// A scenario's land test: its terrain more than [`SHORE_HEIGHT_M`] above its water level.
     /// `None` for scenarios without water or terrain.
     pub fn land_of(world: sim::World) -> Option<LandTest> {
@@ -149,16 +195,21 @@ impl TrackingScore {
             return;
         }
         let yaw = camera.mount.yaw;
-        let right = yaw - ((width as f64 - camera.cx) / camera.fx).atan();
-        let left = yaw + (camera.cx / camera.fx).atan();
-        self.views.insert(head.to_string(), (right, left));
+        self.views.insert(
+            head.to_string(),
+            HeadView {
+                right: yaw - ((width as f64 - camera.cx) / camera.fx).atan(),
+                left: yaw + (camera.cx / camera.fx).atan(),
+                mount: camera.mount.position,
+            },
+        );
     }
 
-    /// Whether a body-frame azimuth (rad) lies in some head's field of view.
-    fn in_view(&self, azimuth: f64) -> bool {
+    /// The first head whose field of view holds a body-frame azimuth (rad).
+    fn head_seeing(&self, azimuth: f64) -> Option<&HeadView> {
         self.views
             .values()
-            .any(|&(right, left)| wrap_pi(azimuth - right) >= 0.0 && wrap_pi(left - azimuth) >= 0.0)
+            .find(|v| wrap_pi(azimuth - v.right) >= 0.0 && wrap_pi(v.left - azimuth) >= 0.0)
     }
 
     pub fn on_truth(&mut self, truth: &GroundTruth) {
@@ -191,7 +242,26 @@ impl TrackingScore {
             let range = dx.hypot(dy);
             let detected = os.track_id.is_some();
             let azimuth = dy.atan2(dx) - own.yaw;
-            let in_view = self.in_view(azimuth);
+            let head = self.head_seeing(azimuth).copied();
+            let in_view = head.is_some();
+            let target = match o.class {
+                truth_class::BOAT => range < 100.0,
+                truth_class::BUOY | truth_class::MARKER => range < 60.0,
+                _ => false,
+            };
+            let in_sight = match (&mut self.sight, head) {
+                (Some(sight), Some(head)) if target => {
+                    let (sin, cos) = own.yaw.sin_cos();
+                    let [mx, my, mz] = head.mount;
+                    let eye = [
+                        own.position[0] + cos * mx - sin * my,
+                        own.position[1] + sin * mx + cos * my,
+                        own.position[2] + mz,
+                    ];
+                    sight(sim::time_of(stamp), eye, o.id)
+                }
+                _ => false,
+            };
             if let Some(bin) = RANGE_BINS_M.iter().position(|&edge| range < edge) {
                 self.by_range
                     .entry((o.class, bin))
@@ -211,22 +281,12 @@ impl TrackingScore {
                     .add(detected);
             }
             match o.class {
-                truth_class::BOAT if range < 100.0 => {
-                    let (all, seen) = self.boats_100m_by_object.entry(o.id).or_default();
-                    add_frame(all, seen, detected, in_view);
-                    add_frame(
-                        &mut self.boats_100m,
-                        &mut self.boats_100m_in_view,
-                        detected,
-                        in_view,
-                    );
+                truth_class::BOAT if target => {
+                    let by_object = self.boats_100m_by_object.entry(o.id).or_default();
+                    by_object.add(detected, in_view, in_sight);
+                    self.boats_100m.add(detected, in_view, in_sight);
                 }
-                truth_class::BUOY | truth_class::MARKER if range < 60.0 => add_frame(
-                    &mut self.markers_60m,
-                    &mut self.markers_60m_in_view,
-                    detected,
-                    in_view,
-                ),
+                _ if target => self.markers_60m.add(detected, in_view, in_sight),
                 _ => {}
             }
             if let Some(id) = os.track_id {
@@ -366,17 +426,25 @@ impl TrackingScore {
                 .collect::<Vec<_>>()
         };
         let median = |v: &[f64]| crate::session::percentile(v, 0.5);
+        // Null until a disparity image told the heads' fields of view, and in sight without the
+        // scenario's world.
+        let in_view = |c: &TargetCounts| (!self.views.is_empty()).then(|| c.in_view.json());
+        let in_sight = |c: &TargetCounts| {
+            (!self.views.is_empty() && self.sight.is_some()).then(|| c.in_sight.json())
+        };
         json!({
             "contact_lists_scored": self.scored_lists,
             "gate_m": GATE_M,
-            "boats_within_100m": self.boats_100m.json(),
-            "markers_within_60m": self.markers_60m.json(),
-            // Null until a disparity image told the heads' fields of view.
-            "boats_within_100m_in_view": (!self.views.is_empty()).then(|| self.boats_100m_in_view.json()),
+            "boats_within_100m": self.boats_100m.all.json(),
+            "markers_within_60m": self.markers_60m.all.json(),
+            "boats_within_100m_in_view": in_view(&self.boats_100m),
+            "boats_within_100m_in_sight": in_sight(&self.boats_100m),
             "boats_within_100m_by_object": self.boats_100m_by_object.iter()
-                .map(|(id, (all, seen))| json!({"id": id, "all": all.json(), "in_view": seen.json()}))
+                .map(|(id, c)| json!({"id": id, "all": c.all.json(), "in_view": c.in_view.json(),
+                                      "in_sight": in_sight(c)}))
                 .collect::<Vec<_>>(),
-            "markers_within_60m_in_view": (!self.views.is_empty()).then(|| self.markers_60m_in_view.json()),
+            "markers_within_60m_in_view": in_view(&self.markers_60m),
+            "markers_within_60m_in_sight": in_sight(&self.markers_60m),
             "by_range_m": bins(&self.by_range, &RANGE_BINS_M, "m"),
             "by_range_m_in_view": bins(&self.by_range_in_view, &RANGE_BINS_M, "m"),
             "by_range_lengths": bins(&self.by_lengths, &LENGTH_BINS, "object lengths"),
@@ -579,6 +647,55 @@ mod tests {
         assert_eq!(in_view_bins[0]["counts"]["frames"], 1);
         assert_eq!(r["markers_within_60m"]["frames"], 2);
         assert_eq!(r["markers_within_60m_in_view"]["frames"], 0);
+    }
+
+    #[test]
+    fn a_target_hidden_from_the_head_is_in_view_but_not_in_sight() {
+        use std::sync::{Arc, Mutex};
+        // The own boat 10 m north of the origin at 1 m, facing east; a head 2 m forward and 3 m
+        // up looking east, 120 deg wide: the boat 40 m north is out of its view, the buoy 30 m
+        // east in it.
+        let stamp = sim::stamp_of(2.5);
+        let mut t = truth(stamp);
+        t.own.pose.position = [0.0, 10.0, 1.0];
+        let mut camera = CameraModel {
+            fx: 50.0 / 3f64.sqrt(),
+            cx: 50.0,
+            ..Default::default()
+        };
+        camera.mount.position = [2.0, 0.0, 3.0];
+        let asked = Arc::new(Mutex::new(Vec::new()));
+        let score = |hidden: bool| {
+            let mut s = TrackingScore::default();
+            let log = asked.clone();
+            s.set_sight(Box::new(move |time, eye, id| {
+                log.lock().unwrap().push((time, eye, id));
+                !hidden
+            }));
+            s.on_camera("hh_front", &camera, 100);
+            s.on_truth(&t);
+            let mut list = ContactList {
+                hdr: Header::new(0, stamp, "tracker"),
+                count: 1,
+                ..Default::default()
+            };
+            list.contacts[0] = contact(10, [30.0, 1.0], [0.0, 0.0]); // on the buoy
+            s.on_contacts(&list);
+            s.report(1.0)
+        };
+        let seen = score(false);
+        assert_eq!(seen["markers_within_60m_in_view"]["detected"], 1);
+        assert_eq!(seen["markers_within_60m_in_sight"]["detected"], 1);
+        // The sight test was asked about the buoy alone, at the frame's time, from the camera.
+        assert_eq!(*asked.lock().unwrap(), [(2.5, [2.0, 10.0, 4.0], 2)]);
+        let hidden = score(true);
+        assert_eq!(hidden["markers_within_60m_in_view"]["frames"], 1);
+        assert_eq!(hidden["markers_within_60m_in_sight"]["frames"], 0);
+        // The boat, out of view, is in neither.
+        assert_eq!(hidden["boats_within_100m"]["frames"], 1);
+        assert_eq!(hidden["boats_within_100m_in_sight"]["frames"], 0);
+        // Without a sight test there is no in-sight figure.
+        assert!(TrackingScore::default().report(1.0)["boats_within_100m_in_sight"].is_null());
     }
 
     #[test]

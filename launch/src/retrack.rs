@@ -95,6 +95,7 @@ pub fn retrack(
     if let Some(scenario) = scenario {
         let world = sim::scenario::load_world(scenario)?;
         for score in [&mut recorded, &mut replayed] {
+            score.set_sight(TrackingScore::sight_of(world.clone()));
             if let Some(land) = TrackingScore::land_of(world.clone()) {
                 score.set_land(land);
             }

@@ -238,7 +238,7 @@ fn render_scenario(path: &Path, args: &TrainArgs) -> anyhow::Result<Vec<Labelled
                 sim.step(cmd, dt.min(t - sim.time()));
             }
             let ins = sim.ins_sample();
-            let stamp = (sim.time() * 1e9).round() as u64 + 1_000_000_000;
+            let stamp = sim::stamp_of(sim.time());
             let truth = ground_truth(&sim);
             for (index, h, pipeline, mount) in heads.iter_mut() {
                 left.resize(h.image_len(), 0);

@@ -27,10 +27,24 @@ pub use camera::{Camera, Encoding, StereoHead};
 pub use dynamics::{Command, Vehicle, VehicleState};
 pub use ins::{Ins, InsNoise, InsSample};
 pub use rectify::{HeadCalibration, Lens, RectifiedView};
-pub use render::{RenderError, Renderer};
+pub use render::{RenderError, Renderer, Sight};
 pub use scenario::{Scenario, ScenarioError};
 pub use truth::{ObjectTruth, WaterRegion, WorldTruth};
 pub use world::{Label, World};
+
+/// Message stamps are scenario time plus this offset, so the first frame's stamp is not 0
+/// ("nothing yet").
+pub const EPOCH_NS: u64 = 1_000_000_000;
+
+/// Stamp (ns) of the messages of scenario time `time_s`.
+pub fn stamp_of(time_s: f64) -> u64 {
+    EPOCH_NS + (time_s * 1e9).round() as u64
+}
+
+/// Scenario time (s) of a message stamp.
+pub fn time_of(stamp_ns: u64) -> f64 {
+    stamp_ns.saturating_sub(EPOCH_NS) as f64 / 1e9
+}
 
 use std::path::Path;
 

@@ -10,12 +10,9 @@ use messages::{
 };
 use runtime::lockstep::LockStep;
 use runtime::{Service, Wake};
-use sim::{Command, Encoding, Simulator, WaterRegion, WorldTruth};
+use sim::{stamp_of, Command, Encoding, Simulator, WaterRegion, WorldTruth};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-
-/// Stamps are scenario time plus this offset, so the first frame's stamp is not 0 ("nothing yet").
-pub const EPOCH_NS: u64 = 1_000_000_000;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -302,10 +299,6 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
-}
-
-pub fn stamp_of(time_s: f64) -> u64 {
-    EPOCH_NS + (time_s * 1e9).round() as u64
 }
 
 fn class_of(class: sim::world::objects::Class) -> u8 {

@@ -8,6 +8,7 @@
 
 mod scene;
 mod shade;
+mod sight;
 mod skycache;
 
 use crate::camera::{Camera, Encoding, StereoHead};
@@ -19,6 +20,8 @@ use rayon::prelude::*;
 use scene::{Ray, Scene};
 use shade::{Surface, Tracer};
 use skycache::SkyCache;
+
+pub use sight::Sight;
 
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {

@@ -60,9 +60,14 @@ impl Prim {
         ]
     }
 
+    /// World-space bounding box (lower, upper corner).
+    pub fn bounds(&self) -> (V3, V3) {
+        (self.lo, self.hi)
+    }
+
     /// Nearest hit in (EPS, tmax) and the outward normal there.
     #[inline]
-    fn intersect(&self, o: V3, d: V3, tmax: f32) -> Option<(f32, V3)> {
+    pub fn intersect(&self, o: V3, d: V3, tmax: f32) -> Option<(f32, V3)> {
         const EPS: f32 = 1e-3;
         match self.geom {
             Geom::Sphere { c, r } => {
