@@ -207,7 +207,7 @@ fn print_cycle(
         if r <= args.radius {
             println!(
                 "          contact {} class {} confirmed {} coasting {} at ({:7.1},{:7.1}) {r:5.1} m \
-                 off, {:4.1} m/s, {:.1} x {:.1} m, age {:.1} s",
+                 off, {:4.1} m/s, {:.1} x {:.1} m, sigma {:.1} m, age {:.1} s",
                 c.id,
                 c.class,
                 c.confirmed,
@@ -217,6 +217,7 @@ fn print_cycle(
                 c.velocity[0].hypot(c.velocity[1]),
                 c.extent[0],
                 c.extent[1],
+                c.covariance[0].max(c.covariance[5]).max(0.0).sqrt(),
                 c.age_s
             );
         }
