@@ -632,29 +632,29 @@ fn listed_line(
 /// The boats within 100 m one by one (`TrackingScore::report`'s `boats_within_100m_by_object`):
 /// which boat a run's misses are on. `None` without boats.
 pub(crate) fn boats_by_object_line(t: &serde_json::Value) -> Option<String> {
-    listed_line(
-        t,
-        "boats_within_100m_by_object",
-        "boats within 100 m by truth id, detected of frames (in a head's view; in sight)",
-        |b| {
-            let in_sight = if b["in_sight"].is_object() {
-                format!(
-                    "; {} of {}",
-                    b["in_sight"]["detected"], b["in_sight"]["frames"]
-                )
-            } else {
-                String::new()
-            };
+    let scored_in_sight = t["boats_within_100m_in_sight"].is_object();
+    let title = format!(
+        "boats within 100 m by truth id, detected of frames (in a head's view{})",
+        if scored_in_sight { "; in sight" } else { "" }
+    );
+    listed_line(t, "boats_within_100m_by_object", &title, |b| {
+        let in_sight = if b["in_sight"].is_object() {
             format!(
-                "#{}: {} of {} ({} of {}{in_sight})",
-                b["id"],
-                b["all"]["detected"],
-                b["all"]["frames"],
-                b["in_view"]["detected"],
-                b["in_view"]["frames"]
+                "; {} of {}",
+                b["in_sight"]["detected"], b["in_sight"]["frames"]
             )
-        },
-    )
+        } else {
+            String::new()
+        };
+        format!(
+            "#{}: {} of {} ({} of {}{in_sight})",
+            b["id"],
+            b["all"]["detected"],
+            b["all"]["frames"],
+            b["in_view"]["detected"],
+            b["in_view"]["frames"]
+        )
+    })
 }
 
 /// The class each true object's track was reported as (`TrackingScore::report`'s
@@ -767,6 +767,17 @@ mod tests {
             boats_by_object_line(&t).unwrap(),
             "  boats within 100 m by truth id, detected of frames (in a head's view): \
              #3: 61 of 240 (51 of 63), #7: 0 of 5 (0 of 0)"
+        );
+        // Scored in sight too: each boat's in-sight frames after its in-view ones.
+        let t = json!({"boats_within_100m_in_sight": {"detected": 50, "frames": 61},
+            "boats_within_100m_by_object": [
+            {"id": 3, "all": {"detected": 61, "frames": 240}, "in_view": {"detected": 51, "frames": 63},
+             "in_sight": {"detected": 50, "frames": 61}},
+        ]});
+        assert_eq!(
+            boats_by_object_line(&t).unwrap(),
+            "  boats within 100 m by truth id, detected of frames (in a head's view; in sight): \
+             #3: 61 of 240 (51 of 63; 50 of 61)"
         );
         assert!(boats_by_object_line(&json!({"boats_within_100m_by_object": []})).is_none());
         assert!(boats_by_object_line(&json!({})).is_none());
