@@ -14,8 +14,10 @@ use crate::session::{has_stopped, percentile, Session};
 use messages::topics;
 use runtime::Ports;
 use serde_json::json;
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
@@ -243,8 +245,8 @@ fn eval_scenario(
             // Tracks on the scenario's shore are shore contacts, not false tracks; what is in view
             // but hidden is scored apart.
             let world = sim::scenario::load_world(scenario)?;
-            obs.tracking
-                .set_sight(TrackingScore::sight_of(world.clone()));
+            let sight = Rc::new(RefCell::new(sim::Sight::new(world.clone())));
+            obs.tracking.set_sight(TrackingScore::sight_of(&sight));
             if let Some(land) = TrackingScore::land_of(world) {
                 obs.tracking.set_land(land);
             }
@@ -639,20 +641,15 @@ pub(crate) fn boats_by_object_line(t: &serde_json::Value) -> Option<String> {
     );
     listed_line(t, "boats_within_100m_by_object", &title, |b| {
         let in_sight = if b["in_sight"].is_object() {
-            format!(
-                "; {} of {}",
-                b["in_sight"]["detected"], b["in_sight"]["frames"]
-            )
+            format!("; {}", detected_of(&b["in_sight"]))
         } else {
             String::new()
         };
         format!(
-            "#{}: {} of {} ({} of {}{in_sight})",
+            "#{}: {} ({}{in_sight})",
             b["id"],
-            b["all"]["detected"],
-            b["all"]["frames"],
-            b["in_view"]["detected"],
-            b["in_view"]["frames"]
+            detected_of(&b["all"]),
+            detected_of(&b["in_view"])
         )
     })
 }
@@ -724,14 +721,16 @@ fn in_view(view: &serde_json::Value, sight: &serde_json::Value) -> String {
     if !view.is_object() {
         return "no head's view known".to_string();
     }
-    let mut s = format!(
-        "in a head's view {} of {}",
-        view["detected"], view["frames"]
-    );
+    let mut s = format!("in a head's view {}", detected_of(view));
     if sight.is_object() {
-        s += &format!(", in sight {} of {}", sight["detected"], sight["frames"]);
+        s += &format!(", in sight {}", detected_of(sight));
     }
     s
+}
+
+/// "D of F" for a detection count (`{"detected": D, "frames": F}`).
+fn detected_of(c: &serde_json::Value) -> String {
+    format!("{} of {}", c["detected"], c["frames"])
 }
 
 #[cfg(test)]

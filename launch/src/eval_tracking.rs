@@ -13,7 +13,9 @@
 use messages::{contact_class, truth_class, CameraModel, ContactList, GroundTruth};
 use serde_json::json;
 use sim::math::wrap_pi;
+use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet};
+use std::rc::Rc;
 use tracker::eval::{expected_contact_class, score, AlongCross};
 
 /// A track within this distance of a true object is that object's track (m).
@@ -170,10 +172,13 @@ impl TrackingScore {
     }
 
     /// A scenario's sight test: rays from the camera through its world at the truth's time.
-    pub fn sight_of(world: sim::World) -> SightTest {
-        let mut sight = sim::Sight::new(world);
+    /// Scores of the same frames (a recording's recorded and replayed contacts) share one
+    /// [`sim::Sight`], which places the world's objects once per frame.
+    pub fn sight_of(sight: &Rc<RefCell<sim::Sight>>) -> SightTest {
+        let sight = Rc::clone(sight);
         Box::new(move |t, eye, id| {
             sight
+                .borrow_mut()
                 .visible_fraction(t, eye, id as usize)
                 .is_some_and(|f| f >= MIN_VISIBLE_FRACTION)
         })

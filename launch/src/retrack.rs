@@ -9,8 +9,10 @@ use crate::eval_tracking::TrackingScore;
 use anyhow::Context;
 use messages::recording::{read_slice, read_value, split};
 use messages::{topics, ContactList, DisparityHeader, GroundTruth, MapCell, WorldMapHeader};
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use tracker::Tracker;
 
 /// Disparity images read for the heads' fields of view: the first frames carry every head.
@@ -94,8 +96,9 @@ pub fn retrack(
     let mut replayed = TrackingScore::default();
     if let Some(scenario) = scenario {
         let world = sim::scenario::load_world(scenario)?;
+        let sight = Rc::new(RefCell::new(sim::Sight::new(world.clone())));
         for score in [&mut recorded, &mut replayed] {
-            score.set_sight(TrackingScore::sight_of(world.clone()));
+            score.set_sight(TrackingScore::sight_of(&sight));
             if let Some(land) = TrackingScore::land_of(world.clone()) {
                 score.set_land(land);
             }

@@ -51,19 +51,14 @@ impl Sight {
     /// another object. `None` for an unknown object or one no ray meets.
     pub fn visible_fraction(&mut self, t: f64, eye: [f64; 3], index: usize) -> Option<f64> {
         let prims = *self.first_prim.get(index)?..*self.first_prim.get(index + 1)?;
-        if prims.is_empty() {
-            return None;
-        }
         if self.time != Some(t) {
             self.scene.build(&self.world, t);
             self.time = Some(t);
         }
-        let (mut lo, mut hi) = self.scene.prims[prims.start].bounds();
-        for p in &self.scene.prims[prims.clone()] {
-            let (a, b) = p.bounds();
-            lo = lo.inf(&a);
-            hi = hi.sup(&b);
-        }
+        let (lo, hi) = self.scene.prims[prims.clone()]
+            .iter()
+            .map(|p| p.bounds())
+            .reduce(|(lo, hi), (a, b)| (lo.inf(&a), hi.sup(&b)))?;
         let eye = v3(eye[0] as f32, eye[1] as f32, eye[2] as f32);
         let centre = (lo + hi) * 0.5;
         let sight = v3(centre.x - eye.x, centre.y - eye.y, 0.0);
