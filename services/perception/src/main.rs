@@ -165,10 +165,6 @@ fn run(config_path: PathBuf, heads: Vec<String>) -> anyhow::Result<()> {
             }
             let stamp = h.hdr.stamp_ns;
             let what = || format!("disparity {} of head '{}'", h.frame_seq, h.head.as_str());
-            if let Err(e) = perception.check(h, sample.payload()) {
-                health.reject(stamp, &format!("{}: {e}", what()));
-                continue;
-            }
             if frame.pending_stamp().is_some_and(|p| p != stamp) {
                 // A newer frame began before the last one was complete.
                 publish(&mut frame, frame_started, health)?;
@@ -217,6 +213,8 @@ fn run(config_path: PathBuf, heads: Vec<String>) -> anyhow::Result<()> {
                     }
                     frame.add_scratch(h.head.as_str(), map_header);
                 }
+                // A bad frame (wrong size, no valid water plane) is this head's part of the frame:
+                // the other heads' maps go out now, not after the head wait.
                 Err(e) => {
                     health.reject(stamp, &format!("{}: {e}", what()));
                     frame.skip(h.head.as_str(), stamp);

@@ -193,16 +193,6 @@ impl Perception {
         }
     }
 
-    /// Checks a frame before an output sample is loaned for it.
-    pub fn check(&self, h: &DisparityHeader, disparity: &[f32]) -> Result<(), FrameError> {
-        let frame = Frame {
-            header: h,
-            disparity,
-            vessel: self.vessel_pose(h),
-        };
-        self.mapper.check(&frame).map(|_| ())
-    }
-
     /// Maps one frame into `out`; returns the local map's header (seq and source from the caller).
     pub fn process(
         &mut self,

@@ -1,6 +1,8 @@
 //! The real `perception` process: synthetic disparity of a buoy 30 m ahead goes in, a local map with
 //! a hazard cell at the buoy comes out; a disparity of the wrong size is rejected in the heartbeat
-//! while the service keeps mapping; a missing or corrupt model stops it at start with a clear error.
+//! while the service keeps mapping, and with two heads the other head's map of that frame goes out
+//! without waiting for the rejected one; a missing or corrupt model stops it at start with a clear
+//! error.
 
 use messages::{topics, Heartbeat, LocalMapHeader, MapCell};
 use perception::synthetic::{Cylinder, Scene};
@@ -14,16 +16,37 @@ fn model_path() -> PathBuf {
 }
 
 fn write_config(dir: &Path, model: &Path) -> PathBuf {
+    write_config_with(dir, model, "heads = [\"hh_left\"]")
+}
+
+/// A config mapping 100 m around the vessel with `heads` (a TOML line or more).
+fn write_config_with(dir: &Path, model: &Path, heads: &str) -> PathBuf {
     let config = dir.join("perception.toml");
     std::fs::write(
         &config,
         format!(
-            "model = {:?}\nheads = [\"hh_left\"]\nframe_deadline_ms = 2000\n[grid]\nwidth = 200\nheight = 200\nresolution_m = 0.5\n",
+            "model = {:?}\n{heads}\nframe_deadline_ms = 2000\n[grid]\nwidth = 200\nheight = 200\nresolution_m = 0.5\n",
             model.display().to_string()
         ),
     )
     .unwrap();
     config
+}
+
+/// Publishes one head's disparity for the frame at `stamp`.
+fn publish_head(
+    publisher: &mut runtime::Publisher<[f32], messages::DisparityHeader>,
+    scene: &Scene,
+    head: &str,
+    stamp: u64,
+    values: &[f32],
+) {
+    let mut header = scene.header(stamp, head);
+    header.hdr.seq = publisher.next_seq();
+    let mut sample = publisher.loan_slice(values.len()).unwrap();
+    sample.payload_mut().copy_from_slice(values);
+    *sample.user_header_mut() = header;
+    publisher.send(sample).unwrap();
 }
 
 /// The hazard cell nearest (east, north) in a map, and its distance (m).
@@ -75,12 +98,7 @@ fn maps_a_buoy_and_rejects_a_wrong_size_frame() {
     scene.render(&mut image);
     let mut stamp = 5_000_000_000u64;
     let mut publish = |head: &str, stamp: u64, values: &[f32]| {
-        let mut header = scene.header(stamp, head);
-        header.hdr.seq = disparity_pub.next_seq();
-        let mut sample = disparity_pub.loan_slice(values.len()).unwrap();
-        sample.payload_mut().copy_from_slice(values);
-        *sample.user_header_mut() = header;
-        disparity_pub.send(sample).unwrap();
+        publish_head(&mut disparity_pub, &scene, head, stamp, values)
     };
 
     // Publish frames (a head the config does not map, then ours) until a map shows the buoy.
@@ -142,6 +160,77 @@ fn maps_a_buoy_and_rejects_a_wrong_size_frame() {
         }
     }
     assert!(after, "no local map after the rejected frame");
+}
+
+#[test]
+fn a_rejected_head_does_not_hold_back_the_others_map_of_its_frame() {
+    let domain = format!("perchead{}", std::process::id());
+    let dir = tempfile::tempdir().unwrap();
+    // A head wait far longer than the test: a frame that goes out came out on the rejection.
+    let config = write_config_with(
+        dir.path(),
+        &model_path(),
+        "heads = [\"hh_left\", \"hh_right\"]\nhead_wait_ms = 600000",
+    );
+    let _process = runtime::testing::ServiceProcess::run(
+        env!("CARGO_BIN_EXE_perception"),
+        config.as_os_str(),
+        &domain,
+    );
+    let node = runtime::tool_node("perception_head_test").unwrap();
+    let mut disparity_pub = topics::DISPARITY.publisher(&node).unwrap();
+    let maps = topics::LOCAL_MAP.subscriber(&node).unwrap();
+    let scene = Scene::hammerhead(640, 480);
+    let mut image = Vec::new();
+    scene.render(&mut image);
+
+    // The service is up once a frame with both heads comes out.
+    let mut stamp = 5_000_000_000u64;
+    let wait_for_map = |stamp: u64, within: Duration| {
+        let end = Instant::now() + within;
+        while Instant::now() < end {
+            while let Some(sample) = maps.receive().unwrap() {
+                if sample.user_header().hdr.stamp_ns == stamp {
+                    return true;
+                }
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        false
+    };
+    let mut up = false;
+    for _ in 0..150 {
+        stamp += 100_000_000;
+        publish_head(&mut disparity_pub, &scene, "hh_left", stamp, &image);
+        publish_head(&mut disparity_pub, &scene, "hh_right", stamp, &image);
+        if wait_for_map(stamp, Duration::from_millis(100)) {
+            up = true;
+            break;
+        }
+    }
+    assert!(up, "no local map of a frame with both heads");
+
+    // The rejected head first, then the good one; then the other way round.
+    for (first_bad, what) in [(true, "rejected head first"), (false, "rejected head last")] {
+        stamp += 100_000_000;
+        let (bad, good) = if first_bad {
+            ("hh_left", "hh_right")
+        } else {
+            ("hh_right", "hh_left")
+        };
+        let order: [(&str, &[f32]); 2] = if first_bad {
+            [(bad, &image[..1000]), (good, &image)]
+        } else {
+            [(good, &image), (bad, &image[..1000])]
+        };
+        for (head, values) in order {
+            publish_head(&mut disparity_pub, &scene, head, stamp, values);
+        }
+        assert!(
+            wait_for_map(stamp, Duration::from_secs(20)),
+            "{what}: the frame's map waited for the rejected head"
+        );
+    }
 }
 
 #[test]
