@@ -192,13 +192,7 @@ impl Default for TrackerConfig {
             // bank's extent (ARCHITECTURE.md, moored boats). As `FRAGMENT_MAX_EXTENT_M`.
             split_min_m: 30.0,
             max_detections: 256,
-            // The scenarios' boats hold their course and speed between turns on a radius. Replayed
-            // over 16 recorded runs (`usv retrack`) 0.2 against 0.5: moving-boat speed error p50
-            // lower on 11 of the 14 runs with a moving boat, higher on 1 (cluttered_river's twelve:
-            // median 6.8 against 9.1 %; follow_boat 1.5 against 1.8 %), heading error lower on all
-            // 14; boats and markers detected in as many frames or more (ARCHITECTURE.md, the
-            // motion model).
-            accel_sigma: 0.2,
+            accel_sigma: 0.5,
             range_sigma: [0.2, 0.01],
             cross_sigma: [0.15, 0.004],
             initial_speed_sigma: 5.0,
