@@ -184,8 +184,88 @@ impl Chaos {
 }
 
 /// True once `service` runs as a new process that has sent a heartbeat.
+/// The text report of a chaos run ([`Chaos::report`]): what was killed when, how soon each came
+/// back, and the hang.
+pub fn report_lines(report: &serde_json::Value) -> Vec<String> {
+    let ms = |v: &serde_json::Value| {
+        v.as_f64()
+            .map_or("never".to_string(), |ms| format!("{ms:.0} ms"))
+    };
+    let events = report["events"]
+        .as_array()
+        .map_or(&[][..], |e| e.as_slice());
+    let (kills, lost) = (
+        report["kills"].as_u64().unwrap_or(0),
+        report["not_recovered"].as_u64().unwrap_or(0),
+    );
+    let mut lines = vec![format!(
+        "chaos (seed {}): {kills} kill -9, {} back{}{}",
+        report["seed"],
+        kills - lost.min(kills),
+        report["max_recovery_ms"]
+            .as_f64()
+            .map_or(String::new(), |m| format!(" within {m:.0} ms")),
+        if lost > 0 {
+            format!(", {lost} never")
+        } else {
+            String::new()
+        },
+    )];
+    lines.extend(events.iter().map(|e| {
+        format!(
+            "  {:>5.1} s  {:<16} back after {}",
+            e["scenario_s"].as_f64().unwrap_or(0.0),
+            e["service"].as_str().unwrap_or("?"),
+            ms(&e["recovered_ms"]),
+        )
+    }));
+    let hang = &report["hang"];
+    if hang.is_object() {
+        lines.push(format!(
+            "  {:>5.1} s  {:<16} hung (SIGSTOP), replaced after {}; {} safe-stop commands meanwhile",
+            hang["scenario_s"].as_f64().unwrap_or(0.0),
+            hang["service"].as_str().unwrap_or("?"),
+            ms(&hang["recovered_ms"]),
+            hang["safe_stop_commands"],
+        ));
+    }
+    lines
+}
+
 fn back(services: &[ServiceStatus], service: &str, old_pid: u32) -> bool {
     services.iter().any(|s| {
         s.name == service && s.pid.is_some_and(|p| p != old_pid) && s.heartbeat_age_ms.is_some()
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_text_report_names_each_kill_its_recovery_and_the_hang() {
+        let report = json!({
+            "seed": 7, "kills": 2, "not_recovered": 1, "max_recovery_ms": 141.7,
+            "events": [
+                {"service": "tracker", "signal": "SIGKILL", "scenario_s": 0.8, "recovered_ms": 141.7, "safe_stop_commands": 0},
+                {"service": "mapper", "signal": "SIGKILL", "scenario_s": 3.4, "recovered_ms": null, "safe_stop_commands": 0},
+            ],
+            "hang": {"service": "perception", "signal": "SIGSTOP", "scenario_s": 6.2, "recovered_ms": 5085.9, "safe_stop_commands": 20},
+        });
+        let lines = report_lines(&report);
+        assert_eq!(
+            lines[0],
+            "chaos (seed 7): 2 kill -9, 1 back within 142 ms, 1 never"
+        );
+        assert!(lines[1].contains("tracker") && lines[1].ends_with("back after 142 ms"));
+        assert!(lines[2].contains("mapper") && lines[2].ends_with("back after never"));
+        assert!(
+            lines[3].contains("perception")
+                && lines[3].contains("replaced after 5086 ms; 20 safe-stop")
+        );
+        assert_eq!(
+            report_lines(&json!({"seed": 1, "kills": 0, "not_recovered": 0, "events": []})).len(),
+            1
+        );
+    }
 }

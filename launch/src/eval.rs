@@ -542,6 +542,26 @@ fn print_report(r: &serde_json::Value) {
             r["overview"].as_str().unwrap_or("-")
         );
     }
+    if r["chaos"].is_object() {
+        for line in crate::chaos::report_lines(&r["chaos"]) {
+            println!("{line}");
+        }
+    }
+    let rec = &r["recording"];
+    if rec.is_object() {
+        println!(
+            "recording: {} {} ({} ground truth and {} stereo messages of {} simulator frames)",
+            rec["file"].as_str().unwrap_or("-"),
+            if rec["complete"].as_bool() == Some(true) {
+                "complete"
+            } else {
+                "INCOMPLETE"
+            },
+            rec["ground_truth"],
+            rec["stereo_frames"],
+            rec["sim_frames"],
+        );
+    }
     for s in r["services"].as_array().into_iter().flatten() {
         println!(
             "  {:<10} processed {:>5}  rejected {:>3}  errors {:>3}  last {} ms  max {} ms",
