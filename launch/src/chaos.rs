@@ -183,7 +183,6 @@ impl Chaos {
     }
 }
 
-/// True once `service` runs as a new process that has sent a heartbeat.
 /// The text report of a chaos run ([`Chaos::report`]): what was killed when, how soon each came
 /// back, and the hang.
 pub fn report_lines(report: &serde_json::Value) -> Vec<String> {
@@ -232,6 +231,7 @@ pub fn report_lines(report: &serde_json::Value) -> Vec<String> {
     lines
 }
 
+/// True once `service` runs as a new process that has sent a heartbeat.
 fn back(services: &[ServiceStatus], service: &str, old_pid: u32) -> bool {
     services.iter().any(|s| {
         s.name == service && s.pid.is_some_and(|p| p != old_pid) && s.heartbeat_age_ms.is_some()

@@ -211,18 +211,16 @@ fn a_rejected_head_does_not_hold_back_the_others_map_of_its_frame() {
     assert!(up, "no local map of a frame with both heads");
 
     // The rejected head first, then the good one; then the other way round.
-    for (first_bad, what) in [(true, "rejected head first"), (false, "rejected head last")] {
+    let (good, bad): (&[f32], &[f32]) = (&image, &image[..1000]);
+    let orders = [
+        (
+            "rejected head first",
+            [("hh_left", bad), ("hh_right", good)],
+        ),
+        ("rejected head last", [("hh_left", good), ("hh_right", bad)]),
+    ];
+    for (what, order) in orders {
         stamp += 100_000_000;
-        let (bad, good) = if first_bad {
-            ("hh_left", "hh_right")
-        } else {
-            ("hh_right", "hh_left")
-        };
-        let order: [(&str, &[f32]); 2] = if first_bad {
-            [(bad, &image[..1000]), (good, &image)]
-        } else {
-            [(good, &image), (bad, &image[..1000])]
-        };
         for (head, values) in order {
             publish_head(&mut disparity_pub, &scene, head, stamp, values);
         }
