@@ -50,6 +50,15 @@ pub struct TrackerConfig {
     pub max_detections: usize,
     /// White-acceleration noise of the constant-velocity model (m/s^2).
     pub accel_sigma: f64,
+    /// White-acceleration noise (m/s^2) of each track's second, quieter filter, fed the same
+    /// detections, whose velocity the contact list reports (see [`ReportFilter`]). Equal to
+    /// `accel_sigma` reports the tracking filter's velocity.
+    pub report_accel_sigma: f64,
+    /// The quieter filter restarts from the tracking filter when its faded normalised innovation
+    /// squared (2 dof, mean 2 while the model holds) exceeds this: a manoeuvre. Well above the
+    /// mean: a far boat's centroid, jumping about its hull, took it past 6 or 10 and the
+    /// restarts gave back most of the gain (ARCHITECTURE.md, the motion model).
+    pub report_restart_nis: f64,
     /// Measurement noise along the line of sight: sigma = a + b * range (m). Stereo range error
     /// grows with range, so the along-range term is the larger one.
     pub range_sigma: [f64; 2],
@@ -193,6 +202,9 @@ impl Default for TrackerConfig {
             split_min_m: 30.0,
             max_detections: 256,
             accel_sigma: 0.5,
+            // Replayed over 16 recordings (ARCHITECTURE.md, the motion model).
+            report_accel_sigma: 0.1,
+            report_restart_nis: 20.0,
             range_sigma: [0.2, 0.01],
             cross_sigma: [0.15, 0.004],
             initial_speed_sigma: 5.0,
@@ -267,6 +279,7 @@ struct Track {
     id: u32,
     x: Vector4<f64>,
     p: Matrix4<f64>,
+    report: ReportFilter,
     born_ns: u64,
     last_hit_ns: u64,
     /// Hit (1) or miss (0) per map, newest in bit 0.
@@ -505,6 +518,8 @@ impl Tracker {
         }
         let positive = [
             cfg.accel_sigma,
+            cfg.report_accel_sigma,
+            cfg.report_restart_nis,
             cfg.range_sigma[0],
             cfg.cross_sigma[0],
             cfg.initial_speed_sigma,
@@ -615,7 +630,13 @@ impl Tracker {
             } else {
                 self.cfg.accel_sigma
             };
-            predict(t, dt, accel_sigma);
+            predict(&mut t.x, &mut t.p, dt, accel_sigma);
+            let report_sigma = if t.held_still {
+                0.0
+            } else {
+                self.cfg.report_accel_sigma
+            };
+            predict(&mut t.report.x, &mut t.report.p, dt, report_sigma);
             // Once it has a real object's record, for as long as it is guided: a track that went
             // back and forth between the two centroids, 2-3 m apart for a boat seen from astern,
             // fell out of its own gate and its speed swung by 2 m/s (follow_boat, seed 38,
@@ -702,7 +723,10 @@ impl Tracker {
                     }
                     let z = measured_at(t, d);
                     let r = measurement_noise(&self.cfg, own, z);
-                    kalman_update(t, Vector2::new(z[0], z[1]), &r);
+                    let zv = Vector2::new(z[0], z[1]);
+                    kalman_update(&mut t.x, &mut t.p, zv, &r);
+                    t.report
+                        .update(zv, &r, self.cfg.report_restart_nis, (&t.x, &t.p));
                     if !t.confirmed {
                         t.push_fix(stamp, z, own, d);
                     }
@@ -821,10 +845,12 @@ impl Tracker {
             class_score[class as usize % 5] = conf;
             // A peak detection also counts (see `counts_to_confirm`).
             let (counts, peak) = counts_to_confirm(&self.cfg, d);
+            let x = Vector4::new(d.position[0], d.position[1], 0.0, 0.0);
             let mut track = Track {
                 id: self.next_id,
-                x: Vector4::new(d.position[0], d.position[1], 0.0, 0.0),
+                x,
                 p,
+                report: ReportFilter::restarted(&x, &p),
                 born_ns: stamp,
                 last_hit_ns: stamp,
                 history: 1,
@@ -1063,9 +1089,13 @@ impl Tracker {
                     continue;
                 }
                 let (class, conf) = t.class();
+                // The position and its covariance are the tracking filter's, the velocity and
+                // the rest of the covariance the quieter filter's (see `ReportFilter`).
                 let mut cov = [0f32; 16];
                 for (k, c) in cov.iter_mut().enumerate() {
-                    *c = t.p[(k / 4, k % 4)] as f32;
+                    let (i, j) = (k / 4, k % 4);
+                    let p = if i < 2 && j < 2 { &t.p } else { &t.report.p };
+                    *c = p[(i, j)] as f32;
                 }
                 out.contacts[n] = Contact {
                     id: t.id,
@@ -1075,7 +1105,7 @@ impl Tracker {
                     _pad: 0,
                     class_confidence: conf,
                     position: [t.x[0], t.x[1]],
-                    velocity: [t.x[2], t.x[3]],
+                    velocity: [t.report.x[2], t.report.x[3]],
                     covariance: cov,
                     extent: t.extent,
                     age_s: ((stamp - t.born_ns) as f64 * 1e-9) as f32,
@@ -1090,7 +1120,7 @@ impl Tracker {
     }
 }
 
-fn predict(t: &mut Track, dt: f64, accel_sigma: f64) {
+fn predict(x: &mut Vector4<f64>, p: &mut Matrix4<f64>, dt: f64, accel_sigma: f64) {
     if dt <= 0.0 {
         return;
     }
@@ -1109,20 +1139,74 @@ fn predict(t: &mut Track, dt: f64, accel_sigma: f64) {
         b, 0.0, c, 0.0, //
         0.0, b, 0.0, c,
     );
-    t.x = f * t.x;
-    t.p = f * t.p * f.transpose() + q;
+    *x = f * *x;
+    *p = f * *p * f.transpose() + q;
 }
 
-fn kalman_update(t: &mut Track, z: Vector2<f64>, r: &Matrix2<f64>) {
+/// Updates the filter with position `z` of noise `r`; returns the normalised innovation squared.
+fn kalman_update(
+    x: &mut Vector4<f64>,
+    p: &mut Matrix4<f64>,
+    z: Vector2<f64>,
+    r: &Matrix2<f64>,
+) -> Option<f64> {
     let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
-    let s = h * t.p * h.transpose() + r;
-    let Some(si) = s.try_inverse() else { return };
-    let k = t.p * h.transpose() * si;
-    let y = z - h * t.x;
-    t.x += k * y;
+    let s = h * *p * h.transpose() + r;
+    let si = s.try_inverse()?;
+    let k = *p * h.transpose() * si;
+    let y = z - h * *x;
+    *x += k * y;
     // Joseph form keeps P symmetric and positive.
     let i_kh = Matrix4::identity() - k * h;
-    t.p = i_kh * t.p * i_kh.transpose() + k * r * k.transpose();
+    *p = i_kh * *p * i_kh.transpose() + k * r * k.transpose();
+    Some((y.transpose() * si * y)[0])
+}
+
+/// Each track's second constant-velocity filter, fed the same detections as the tracking filter
+/// with less white-acceleration noise ([`TrackerConfig::report_accel_sigma`]); the contact list
+/// reports its velocity. The tracking filter's noise keeps the gates open for a turning boat, but
+/// it also takes the jumps of a far boat's centroid (a different piece of its rim mapped each
+/// map) for changes of velocity; a quieter tracking filter cost markers and gave more false
+/// tracks in closed loop (ARCHITECTURE.md, the motion model). A manoeuvre shows in this filter's
+/// innovations, and it restarts from the tracking filter when they grow too large
+/// ([`TrackerConfig::report_restart_nis`]), or when the tracking filter's velocity is set
+/// ([`stop`]).
+#[derive(Debug, Clone)]
+struct ReportFilter {
+    x: Vector4<f64>,
+    p: Matrix4<f64>,
+    /// Faded normalised innovation squared (2 dof: 2 on average while the model holds).
+    nis: f64,
+}
+
+impl ReportFilter {
+    /// Weight of the newest innovation in the faded NIS (about the last three maps count).
+    const NIS_WEIGHT: f64 = 0.3;
+
+    /// A copy of the tracking filter's state.
+    fn restarted(x: &Vector4<f64>, p: &Matrix4<f64>) -> Self {
+        Self {
+            x: *x,
+            p: *p,
+            nis: 2.0,
+        }
+    }
+
+    /// Updates with `z`; restarts from `tracking` (already updated) when the faded NIS exceeds
+    /// `restart_nis`.
+    fn update(
+        &mut self,
+        z: Vector2<f64>,
+        r: &Matrix2<f64>,
+        restart_nis: f64,
+        tracking: (&Vector4<f64>, &Matrix4<f64>),
+    ) {
+        let nis = kalman_update(&mut self.x, &mut self.p, z, r).unwrap_or(f64::INFINITY);
+        self.nis += Self::NIS_WEIGHT * (nis - self.nis);
+        if self.nis.is_nan() || self.nis > restart_nis {
+            *self = Self::restarted(tracking.0, tracking.1);
+        }
+    }
 }
 
 /// Bit mask of the newest `window` maps of a track's history.
@@ -1188,6 +1272,7 @@ fn hold_still(t: &mut Track) {
     if t.held_still {
         t.x[2] = 0.0;
         t.x[3] = 0.0;
+        t.report = ReportFilter::restarted(&t.x, &t.p);
     } else {
         t.held_still = true;
         let drift = ANCHORED_DRIFT_MPS * ANCHORED_DRIFT_MPS;
@@ -1208,6 +1293,7 @@ fn stop(t: &mut Track, variance: impl Fn(f64) -> f64) {
         }
         t.p[(v, v)] = var;
     }
+    t.report = ReportFilter::restarted(&t.x, &t.p);
 }
 
 /// Places a track detected in a large component ([`Detection::in_large_component`]: a bank, or a
@@ -1394,10 +1480,15 @@ mod tests {
     /// A confirmed track at `position` moving at `velocity`, born at `born_ns`, that missed the
     /// last map (its last detection 0.6 s before `NOW`).
     fn coasting(id: u32, born_ns: u64, position: [f64; 2], velocity: [f64; 2]) -> Track {
+        let (x, p) = (
+            Vector4::new(position[0], position[1], velocity[0], velocity[1]),
+            Matrix4::identity(),
+        );
         Track {
             id,
-            x: Vector4::new(position[0], position[1], velocity[0], velocity[1]),
-            p: Matrix4::identity(),
+            x,
+            p,
+            report: ReportFilter::restarted(&x, &p),
             born_ns,
             last_hit_ns: NOW - 600_000_000,
             history: 0b1111_1110,
