@@ -118,6 +118,20 @@ struct TrackLife {
 /// Confirmed tracks listed one by one in the report, at most.
 const TRACKS_LISTED: usize = 200;
 
+/// A track this old (s) has left its start from rest behind: a new track's velocity converges
+/// from zero over its first second or two.
+const SETTLED_TRACK_AGE_S: f32 = 2.0;
+
+/// One moving object's speed and heading errors over the frames its track had a detection, and
+/// the speed errors of those frames in which that track was `SETTLED_TRACK_AGE_S` or older: where
+/// the two medians differ, the error is the tracks' start, not their steady state.
+#[derive(Default)]
+struct ObjectMotionErrors {
+    speed_pct: Vec<f64>,
+    settled_speed_pct: Vec<f64>,
+    heading_deg: Vec<f64>,
+}
+
 #[derive(Default)]
 pub struct TrackingScore {
     truths: BTreeMap<u64, Box<GroundTruth>>,
@@ -157,6 +171,8 @@ pub struct TrackingScore {
     /// The same over the frames in which the track had a detection (not coasting).
     detected_speed_errors_pct: Vec<f64>,
     heading_errors_deg: Vec<f64>,
+    /// The moving objects' errors by truth id: which object the speed error is on.
+    motion_by_object: BTreeMap<u32, ObjectMotionErrors>,
     along_cross: AlongCross,
 }
 
@@ -303,6 +319,17 @@ impl TrackingScore {
                 self.speed_errors_pct.push(speed);
                 if !os.coasting {
                     self.detected_speed_errors_pct.push(speed);
+                    let age_s = list
+                        .as_slice()
+                        .iter()
+                        .find(|c| Some(c.id) == os.track_id)
+                        .map_or(0.0, |c| c.age_s);
+                    let errors = self.motion_by_object.entry(o.id).or_default();
+                    errors.speed_pct.push(speed);
+                    errors.heading_deg.push(heading.to_degrees().abs());
+                    if age_s >= SETTLED_TRACK_AGE_S {
+                        errors.settled_speed_pct.push(speed);
+                    }
                 }
                 self.heading_errors_deg.push(heading.to_degrees().abs());
             }
@@ -469,6 +496,15 @@ impl TrackingScore {
                                        "detected_p50": median(&self.detected_speed_errors_pct),
                                        "detected_samples": self.detected_speed_errors_pct.len()},
             "moving_heading_error_deg": {"p50": median(&self.heading_errors_deg)},
+            "moving_errors_by_object": self.motion_by_object.iter()
+                .map(|(id, e)| json!({"id": id,
+                                      "speed_error_pct_p50": median(&e.speed_pct),
+                                      "samples": e.speed_pct.len(),
+                                      "settled_speed_error_pct_p50": median(&e.settled_speed_pct),
+                                      "settled_samples": e.settled_speed_pct.len(),
+                                      "settled_age_s": SETTLED_TRACK_AGE_S,
+                                      "heading_error_deg_p50": median(&e.heading_deg)}))
+                .collect::<Vec<_>>(),
             "along_cross_3sigma_ratio": self.along_cross.sigma_ratio(),
             "along_cross_rms_error_m": self.along_cross.rms_errors(),
         })
@@ -701,6 +737,62 @@ mod tests {
         assert_eq!(hidden["boats_within_100m_in_sight"]["frames"], 0);
         // Without a sight test there is no in-sight figure.
         assert!(TrackingScore::default().report(1.0)["boats_within_100m_in_sight"].is_null());
+    }
+
+    #[test]
+    fn speed_errors_are_listed_by_object_and_apart_once_the_track_is_settled() {
+        let mut s = TrackingScore::default();
+        // The boat (5 m/s east) tracked by a new track at 3 m/s, then by a 3 s old one at 4.9 m/s
+        // twice; a coasting frame counts for neither.
+        for (k, age_s, speed, coasting) in [
+            (1, 0.4, 3.0, 0),
+            (2, 3.0, 4.9, 0),
+            (3, 3.2, 4.9, 0),
+            (4, 3.4, 1.0, 1),
+        ] {
+            s.on_truth(&truth(k));
+            let mut list = ContactList {
+                hdr: Header::new(k, k, "tracker"),
+                count: 1,
+                ..Default::default()
+            };
+            list.contacts[0] = Contact {
+                age_s,
+                coasting,
+                ..contact(10, [0.0, 40.0], [speed, 0.0])
+            };
+            s.on_contacts(&list);
+        }
+        let r = s.report(0.5);
+        let by_object = r["moving_errors_by_object"].as_array().unwrap();
+        assert_eq!(by_object.len(), 1, "the buoy does not move: {by_object:?}");
+        let boat = &by_object[0];
+        assert_eq!(boat["id"], 1);
+        assert_eq!(
+            (boat["samples"].as_u64(), boat["settled_samples"].as_u64()),
+            (Some(3), Some(2))
+        );
+        let p50 = |key: &str| boat[key].as_f64().unwrap();
+        assert!((p50("speed_error_pct_p50") - 2.0).abs() < 1e-9);
+        assert!((p50("settled_speed_error_pct_p50") - 2.0).abs() < 1e-9);
+        assert!(p50("heading_error_deg_p50").abs() < 1e-9);
+        // Without the settled frames the new track's 40 % is the median.
+        let mut young = TrackingScore::default();
+        young.on_truth(&truth(1));
+        let mut list = ContactList {
+            hdr: Header::new(1, 1, "tracker"),
+            count: 1,
+            ..Default::default()
+        };
+        list.contacts[0] = Contact {
+            age_s: 0.4,
+            ..contact(10, [0.0, 40.0], [3.0, 0.0])
+        };
+        young.on_contacts(&list);
+        let r = young.report(0.5);
+        let boat = &r["moving_errors_by_object"][0];
+        assert!((boat["speed_error_pct_p50"].as_f64().unwrap() - 40.0).abs() < 1e-9);
+        assert!(boat["settled_speed_error_pct_p50"].is_null());
     }
 
     #[test]
