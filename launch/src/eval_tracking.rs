@@ -316,6 +316,7 @@ impl TrackingScore {
                 self.along_cross.add(os);
             }
             if let (Some(speed), Some(heading)) = (os.speed_error_pct, os.heading_error) {
+                let heading_deg = heading.to_degrees().abs();
                 self.speed_errors_pct.push(speed);
                 if !os.coasting {
                     self.detected_speed_errors_pct.push(speed);
@@ -326,12 +327,12 @@ impl TrackingScore {
                         .map_or(0.0, |c| c.age_s);
                     let errors = self.motion_by_object.entry(o.id).or_default();
                     errors.speed_pct.push(speed);
-                    errors.heading_deg.push(heading.to_degrees().abs());
+                    errors.heading_deg.push(heading_deg);
                     if age_s >= SETTLED_TRACK_AGE_S {
                         errors.settled_speed_pct.push(speed);
                     }
                 }
-                self.heading_errors_deg.push(heading.to_degrees().abs());
+                self.heading_errors_deg.push(heading_deg);
             }
         }
         for c in list.as_slice().iter().filter(|c| c.confirmed == 1) {
@@ -739,6 +740,22 @@ mod tests {
         assert!(TrackingScore::default().report(1.0)["boats_within_100m_in_sight"].is_null());
     }
 
+    /// Frame `k`'s truth, and the boat tracked on it by track 10, `age_s` old, at `speed` east.
+    fn boat_tracked(s: &mut TrackingScore, k: u64, age_s: f32, speed: f64, coasting: u8) {
+        s.on_truth(&truth(k));
+        let mut list = ContactList {
+            hdr: Header::new(k, k, "tracker"),
+            count: 1,
+            ..Default::default()
+        };
+        list.contacts[0] = Contact {
+            age_s,
+            coasting,
+            ..contact(10, [0.0, 40.0], [speed, 0.0])
+        };
+        s.on_contacts(&list);
+    }
+
     #[test]
     fn speed_errors_are_listed_by_object_and_apart_once_the_track_is_settled() {
         let mut s = TrackingScore::default();
@@ -750,18 +767,7 @@ mod tests {
             (3, 3.2, 4.9, 0),
             (4, 3.4, 1.0, 1),
         ] {
-            s.on_truth(&truth(k));
-            let mut list = ContactList {
-                hdr: Header::new(k, k, "tracker"),
-                count: 1,
-                ..Default::default()
-            };
-            list.contacts[0] = Contact {
-                age_s,
-                coasting,
-                ..contact(10, [0.0, 40.0], [speed, 0.0])
-            };
-            s.on_contacts(&list);
+            boat_tracked(&mut s, k, age_s, speed, coasting);
         }
         let r = s.report(0.5);
         let by_object = r["moving_errors_by_object"].as_array().unwrap();
@@ -778,17 +784,7 @@ mod tests {
         assert!(p50("heading_error_deg_p50").abs() < 1e-9);
         // Without the settled frames the new track's 40 % is the median.
         let mut young = TrackingScore::default();
-        young.on_truth(&truth(1));
-        let mut list = ContactList {
-            hdr: Header::new(1, 1, "tracker"),
-            count: 1,
-            ..Default::default()
-        };
-        list.contacts[0] = Contact {
-            age_s: 0.4,
-            ..contact(10, [0.0, 40.0], [3.0, 0.0])
-        };
-        young.on_contacts(&list);
+        boat_tracked(&mut young, 1, 0.4, 3.0, 0);
         let r = young.report(0.5);
         let boat = &r["moving_errors_by_object"][0];
         assert!((boat["speed_error_pct_p50"].as_f64().unwrap() - 40.0).abs() < 1e-9);

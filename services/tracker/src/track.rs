@@ -625,17 +625,12 @@ impl Tracker {
 
         for t in &mut self.tracks {
             // An anchored object does not manoeuvre (see `hold_still`).
-            let accel_sigma = if t.held_still {
-                0.0
+            let (accel_sigma, report_sigma) = if t.held_still {
+                (0.0, 0.0)
             } else {
-                self.cfg.accel_sigma
+                (self.cfg.accel_sigma, self.cfg.report_accel_sigma)
             };
             predict(&mut t.x, &mut t.p, dt, accel_sigma);
-            let report_sigma = if t.held_still {
-                0.0
-            } else {
-                self.cfg.report_accel_sigma
-            };
             predict(&mut t.report.x, &mut t.report.p, dt, report_sigma);
             // Once it has a real object's record, for as long as it is guided: a track that went
             // back and forth between the two centroids, 2-3 m apart for a boat seen from astern,
