@@ -682,36 +682,66 @@ pub(crate) fn class_line(t: &serde_json::Value) -> Option<String> {
         t,
         "class_of_tracked_frames",
         "reported as the right class, of the frames with a track",
-        |c| {
-            let expected = c["expected"].as_str().unwrap_or("-");
-            let others: Vec<String> = c["said"]
-                .as_object()
-                .into_iter()
-                .flatten()
-                .filter(|(said, _)| *said != expected)
-                .map(|(said, n)| format!("{said} {n}"))
-                .collect();
-            let others = if others.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", others.join(", "))
-            };
-            format!(
-                "{} {} of {}{others}",
-                c["truth"].as_str().unwrap_or("-"),
-                c["right"],
-                c["frames"]
-            )
-        },
+        class_item,
     )
+}
+
+/// [`class_line`] by true object (`class_of_tracked_frames_by_object`): "#8 boat 54 of 421
+/// (extended 339)".
+pub(crate) fn class_by_object_line(t: &serde_json::Value) -> Option<String> {
+    listed_line(
+        t,
+        "class_of_tracked_frames_by_object",
+        "the same by truth id",
+        |c| format!("#{} {}", c["id"], class_item(c)),
+    )
+}
+
+/// "boat 412 of 507 (false-alarm 45, marker 50)" for one entry of `class_of_tracked_frames`.
+fn class_item(c: &serde_json::Value) -> String {
+    let expected = c["expected"].as_str().unwrap_or("-");
+    let others: Vec<String> = c["said"]
+        .as_object()
+        .into_iter()
+        .flatten()
+        .filter(|(said, _)| *said != expected)
+        .map(|(said, n)| format!("{said} {n}"))
+        .collect();
+    let others = if others.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", others.join(", "))
+    };
+    format!(
+        "{} {} of {}{others}",
+        c["truth"].as_str().unwrap_or("-"),
+        c["right"],
+        c["frames"]
+    )
+}
+
+/// Track-frames reported a boat by tracks on no true object (`boat_reports_off_objects`); `None`
+/// when not scored.
+fn boat_reports_off_objects_line(t: &serde_json::Value) -> Option<String> {
+    let b = t["boat_reports_off_objects"].as_object()?;
+    Some(format!(
+        "  track-frames reported a boat off every true object: {} on the shore, {} elsewhere",
+        b.get("shore").unwrap_or(&serde_json::Value::Null),
+        b.get("elsewhere").unwrap_or(&serde_json::Value::Null)
+    ))
 }
 
 /// The lines printed under the tracking line: the boats one by one and the classes reported.
 pub(crate) fn tracking_detail_lines(t: &serde_json::Value) -> Vec<String> {
-    [boats_by_object_line(t), class_line(t)]
-        .into_iter()
-        .flatten()
-        .collect()
+    [
+        boats_by_object_line(t),
+        class_line(t),
+        class_by_object_line(t),
+        boat_reports_off_objects_line(t),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
 }
 
 /// A number scaled, with two decimals, or "-".
@@ -815,6 +845,17 @@ mod tests {
              boat 7 of 10 (extended 1, false-alarm 2), buoy 4 of 4"
         );
         assert!(class_line(&json!({"class_of_tracked_frames": []})).is_none());
+        let t = json!({"class_of_tracked_frames_by_object": [
+            {"id": 8, "truth": "boat", "expected": "boat", "frames": 421, "right": 54,
+             "said": {"boat": 54, "extended": 339, "false-alarm": 28}},
+        ], "boat_reports_off_objects": {"shore": 968, "elsewhere": 114}});
+        assert_eq!(
+            tracking_detail_lines(&t),
+            [
+                "  the same by truth id: #8 boat 54 of 421 (extended 339, false-alarm 28)",
+                "  track-frames reported a boat off every true object: 968 on the shore, 114 elsewhere",
+            ]
+        );
         assert_eq!(tracking_detail_lines(&json!({})), Vec::<String>::new());
     }
 

@@ -103,9 +103,10 @@ struct HeadView {
 struct TrackLife {
     first_stamp_ns: u64,
     last_stamp_ns: u64,
-    /// Contact lists it was confirmed in, and of those, coasting.
+    /// Contact lists it was confirmed in, and of those, coasting and reported a boat.
     lists: u32,
     coasting: u32,
+    boat_lists: u32,
     /// Range (m) and body-frame bearing (deg, counter-clockwise from the bow) at confirmation.
     range_m: f64,
     bearing_deg: f64,
@@ -167,6 +168,9 @@ pub struct TrackingScore {
     /// (truth class, reported class) -> frames in which the object had a track: what the
     /// sequencer was told each true object was.
     reported_class: BTreeMap<(u8, u8), u64>,
+    /// The same by truth id, (truth class, reported class) -> frames: which object the wrong
+    /// classes are on (a moored boat against a bank, a far boat seen smeared).
+    reported_class_by_object: BTreeMap<u32, BTreeMap<(u8, u8), u64>>,
     speed_errors_pct: Vec<f64>,
     /// The same over the frames in which the track had a detection (not coasting).
     detected_speed_errors_pct: Vec<f64>,
@@ -313,6 +317,12 @@ impl TrackingScore {
             if let Some(id) = os.track_id {
                 self.matched_ids.insert(id);
                 *self.reported_class.entry((o.class, os.class)).or_default() += 1;
+                *self
+                    .reported_class_by_object
+                    .entry(o.id)
+                    .or_default()
+                    .entry((o.class, os.class))
+                    .or_default() += 1;
                 self.along_cross.add(os);
             }
             if let (Some(speed), Some(heading)) = (os.speed_error_pct, os.heading_error) {
@@ -345,6 +355,7 @@ impl TrackingScore {
                 last_stamp_ns: stamp,
                 lists: 0,
                 coasting: 0,
+                boat_lists: 0,
                 range_m: dx.hypot(dy),
                 bearing_deg: wrap_pi(dy.atan2(dx) - own.yaw).to_degrees(),
                 age_s: c.age_s,
@@ -355,6 +366,7 @@ impl TrackingScore {
             life.last_stamp_ns = stamp;
             life.lists += 1;
             life.coasting += u32::from(c.coasting == 1);
+            life.boat_lists += u32::from(c.class == contact_class::BOAT);
             if matches!(
                 c.class,
                 contact_class::BOAT | contact_class::CHANNEL_MARKER | contact_class::EXTENDED
@@ -422,6 +434,24 @@ impl TrackingScore {
             .collect()
     }
 
+    /// Track-frames reported a boat by tracks that never met a scored true object, on the shore
+    /// and elsewhere: what the sequencer was told was a boat that was none.
+    fn boat_reports_off_objects(&self) -> serde_json::Value {
+        let (mut shore, mut elsewhere) = (0u64, 0u64);
+        for (id, l) in self
+            .lives
+            .iter()
+            .filter(|(id, _)| !self.matched_ids.contains(id))
+        {
+            if self.shore_ids.contains(id) {
+                shore += u64::from(l.boat_lists);
+            } else {
+                elsewhere += u64::from(l.boat_lists);
+            }
+        }
+        json!({"shore": shore, "elsewhere": elsewhere})
+    }
+
     /// Confirmed tracks on the shore that never met a scored true object.
     pub fn shore_tracks(&self) -> usize {
         self.shore_ids.difference(&self.matched_ids).count()
@@ -432,18 +462,19 @@ impl TrackingScore {
     fn reported_classes(&self) -> Vec<serde_json::Value> {
         SCORED
             .iter()
-            .filter_map(|&truth| {
-                let said: BTreeMap<&str, u64> = self
-                    .reported_class
-                    .range((truth, 0)..=(truth, u8::MAX))
-                    .map(|(&(_, c), &n)| (contact_class::name(c), n))
-                    .collect();
-                let frames: u64 = said.values().sum();
-                let expected = contact_class::name(expected_contact_class(truth));
-                let right = said.get(expected).copied().unwrap_or(0);
-                (frames > 0).then(|| {
-                    json!({"truth": truth_class::name(truth), "expected": expected,
-                           "frames": frames, "right": right, "said": said})
+            .filter_map(|&truth| class_tally(&self.reported_class, truth))
+            .collect()
+    }
+
+    /// [`Self::reported_classes`] by true object, with its id.
+    fn reported_classes_by_object(&self) -> Vec<serde_json::Value> {
+        self.reported_class_by_object
+            .iter()
+            .flat_map(|(id, said)| {
+                SCORED.iter().filter_map(move |&truth| {
+                    let mut tally = class_tally(said, truth)?;
+                    tally["id"] = json!(id);
+                    Some(tally)
                 })
             })
             .collect()
@@ -490,8 +521,10 @@ impl TrackingScore {
             "false_object_tracks": self.false_object_tracks(),
             "false_object_tracks_per_min": (scenario_minutes > 0.0)
                 .then(|| self.false_object_tracks() as f64 / scenario_minutes),
+            "boat_reports_off_objects": self.boat_reports_off_objects(),
             "tracks": self.track_list(),
             "class_of_tracked_frames": self.reported_classes(),
+            "class_of_tracked_frames_by_object": self.reported_classes_by_object(),
             "moving_speed_error_pct": {"p50": median(&self.speed_errors_pct),
                                        "samples": self.speed_errors_pct.len(),
                                        "detected_p50": median(&self.detected_speed_errors_pct),
@@ -512,6 +545,21 @@ impl TrackingScore {
     }
 }
 
+/// The frames a true class had a track, from (truth class, reported class) -> frames: how many
+/// reported the class it should be, and the count of each class reported; `None` without any.
+fn class_tally(reported: &BTreeMap<(u8, u8), u64>, truth: u8) -> Option<serde_json::Value> {
+    let said: BTreeMap<&str, u64> = reported
+        .range((truth, 0)..=(truth, u8::MAX))
+        .map(|(&(_, c), &n)| (contact_class::name(c), n))
+        .collect();
+    let frames: u64 = said.values().sum();
+    let expected = contact_class::name(expected_contact_class(truth));
+    let right = said.get(expected).copied().unwrap_or(0);
+    (frames > 0).then(|| {
+        json!({"truth": truth_class::name(truth), "expected": expected,
+               "frames": frames, "right": right, "said": said})
+    })
+}
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -591,6 +639,11 @@ mod tests {
         assert_eq!(r["false_tracks_per_min"], 4.0);
         assert_eq!(r["false_object_tracks"], 1);
         assert_eq!(r["false_object_tracks_per_min"], 2.0);
+        // The false track called a boat was one track-frame of a boat that is none.
+        assert_eq!(
+            r["boat_reports_off_objects"],
+            json!({"shore": 0, "elsewhere": 1})
+        );
         // Each track as first confirmed: range and bearing from the own boat (facing east).
         let listed = r["tracks"].as_array().unwrap();
         let [target, boat, alarm] = [&listed[0], &listed[1], &listed[2]];
@@ -636,6 +689,11 @@ mod tests {
         assert_eq!(
             r["class_of_tracked_frames"],
             json!([{"truth": "boat", "expected": "boat", "frames": 2, "right": 1,
+                    "said": {"boat": 1, "unknown": 1}}])
+        );
+        assert_eq!(
+            r["class_of_tracked_frames_by_object"],
+            json!([{"id": 1, "truth": "boat", "expected": "boat", "frames": 2, "right": 1,
                     "said": {"boat": 1, "unknown": 1}}])
         );
         // The boat is 40 m out: the 25-50 m bin, and 5 lengths -> the 5-10 lengths bin.
