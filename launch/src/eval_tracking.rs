@@ -425,7 +425,7 @@ impl TrackingScore {
                 json!({"id": id, "truth": truth,
                        "confirmed_at_s": since_start(l.first_stamp_ns),
                        "confirmed_for_s": l.last_stamp_ns.saturating_sub(l.first_stamp_ns) as f64 * 1e-9,
-                       "lists": l.lists, "coasting": l.coasting,
+                       "lists": l.lists, "coasting": l.coasting, "reported_boat": l.boat_lists,
                        "range_m": l.range_m, "bearing_deg": l.bearing_deg,
                        "age_s": l.age_s, "speed_mps": l.speed_mps,
                        "class": contact_class::name(l.class), "extent_m": l.extent,
