@@ -3,9 +3,11 @@
 //! resident memory before and after a simulated 10-minute run at 10 Hz. The same scene again with
 //! components never cut ([`TrackerConfig::split_min_m`] infinite) prices the bank's cut.
 
+use crate::track::view_span;
 use crate::train::{rasterize, NoiseModel, Rng, TruthShape};
 use crate::{Model, Tracker, TrackerConfig};
 use messages::{contact_class, ContactList, GridGeometry, Header, MapCell, Pose, WorldMapHeader};
+use nalgebra::Vector2;
 use std::time::Instant;
 
 pub fn vm_rss_kb() -> Option<u64> {
@@ -107,6 +109,14 @@ pub fn run(model: &Model, quick: bool) -> Vec<(String, f64, &'static str)> {
             }
         }
         let rss_end = vm_rss_kb().unwrap_or(0);
+        // The view's span, looked up in a map where some track moves like a boat (the bench's
+        // blobs are slower): every observed cell 8-60 m out of the last map, every other row.
+        let span_started = Instant::now();
+        let span_runs = 100;
+        for _ in 0..span_runs {
+            std::hint::black_box(view_span(&grid, &cells, Vector2::zeros(), 0.0));
+        }
+        let span_us = span_started.elapsed().as_secs_f64() * 1e6 / span_runs as f64;
         times.sort_by(f64::total_cmp);
         let mean = times.iter().sum::<f64>() / times.len() as f64;
         let p99 = times[(times.len() * 99 / 100).min(times.len() - 1)];
@@ -122,6 +132,11 @@ pub fn run(model: &Model, quick: bool) -> Vec<(String, f64, &'static str)> {
             format!("{label}: detections from cut components per update"),
             cut as f64 / updates as f64,
             "",
+        ));
+        out.push((
+            format!("{label}: the sensors' view span (once per map with a boat-like mover)"),
+            span_us,
+            "us",
         ));
         out.push((format!("{label}: VmRSS before"), rss0 as f64, "kB"));
         out.push((

@@ -1338,7 +1338,7 @@ const STANDING_WANDER_MPS: f64 = 1.0;
 /// the least and the greatest over its observed cells `VIEW_SPAN_FROM_M` to `VIEW_SPAN_TO_M`
 /// out (every other row and column; the heads look forward, so one span). `None` when nothing
 /// was observed there.
-fn view_span(
+pub(crate) fn view_span(
     g: &GridGeometry,
     cells: &[MapCell],
     own: Vector2<f64>,
