@@ -440,8 +440,8 @@ impl Track {
     /// Sets `moved_like_a_boat` from this map's [`Track::moves_like_a_boat`], unless the track
     /// lies at the edge of the sensors' view (`at_view_edge`, asked only of a track that moves
     /// like a boat), where it keeps what it was judged before. There the visible piece of a bank
-    /// slides along with the own boat as the view sweeps along it: over ten cluttered_river
-    /// recordings, such pieces were reported boats moving at about the own boat's speed, 27-30 m
+    /// slides along the bank as the view's edge sweeps it, as fast as a boat: over ten
+    /// cluttered_river recordings such pieces were reported boats moving at 2.6-9 m/s, 27-30 m
     /// abeam or 80-110 m out at 42-51 degrees off the bow, while a boat that had been judged one
     /// before it came to the edge stays one. A boat that stays at the edge from its first
     /// judgement on is reported as its votes say (open_water_crossing's crossing boat, 46-63
@@ -1365,8 +1365,8 @@ pub(crate) fn view_span(
 }
 
 /// Whether `p` lies within `VIEW_EDGE_DEG` of either edge of the sensors' view ([`view_span`]),
-/// inside or out. There a bank's visible piece moves with the own boat as the view sweeps along
-/// it, at about the own boat's speed.
+/// inside or out. There a bank's visible piece slides along the bank as the view's edge sweeps it
+/// ([`Track::judge_motion`]).
 fn at_view_edge(span: (f64, f64), own: Vector2<f64>, yaw: f64, p: [f64; 2]) -> bool {
     let b = bearing_from_bow(own, yaw, p);
     let margin = VIEW_EDGE_DEG.to_radians();
