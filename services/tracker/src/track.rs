@@ -441,8 +441,8 @@ impl Track {
     /// lies at the edge of the sensors' view (`at_view_edge`, asked only of a track that moves
     /// like a boat), where it keeps what it was judged before. There the visible piece of a bank
     /// slides along the bank as the view's edge sweeps it, as fast as a boat: over ten
-    /// cluttered_river recordings such pieces were reported boats moving at 2.6-9 m/s, 27-30 m
-    /// abeam or 80-110 m out at 42-51 degrees off the bow, while a boat that had been judged one
+    /// cluttered_river recordings such pieces were reported boats, 27-30 m abeam or 80-110 m out
+    /// at 42-51 degrees off the bow, while a boat that had been judged one
     /// before it came to the edge stays one. A boat that stays at the edge from its first
     /// judgement on is reported as its votes say (open_water_crossing's crossing boat, 46-63
     /// degrees off the bow: ARCHITECTURE.md).
