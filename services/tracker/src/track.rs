@@ -442,10 +442,10 @@ impl Track {
     /// like a boat), where it keeps what it was judged before. There the visible piece of a bank
     /// slides along the bank as the view's edge sweeps it, as fast as a boat: over ten
     /// cluttered_river recordings such pieces were reported boats, 27-30 m abeam or 80-110 m out
-    /// at 42-51 degrees off the bow, while a boat that had been judged one
-    /// before it came to the edge stays one. A boat that stays at the edge from its first
-    /// judgement on is reported as its votes say (open_water_crossing's crossing boat, 46-63
-    /// degrees off the bow: ARCHITECTURE.md).
+    /// at 42-51 degrees off the bow, while a boat that had been judged one before it came to the
+    /// edge stays one. A boat that stays at the edge from its first judgement on is reported as
+    /// its votes say (open_water_crossing's crossing boat, 46-63 degrees off the bow:
+    /// ARCHITECTURE.md).
     fn judge_motion(&mut self, at_view_edge: impl FnOnce(&Track) -> bool) {
         if !self.moves_like_a_boat() {
             self.moved_like_a_boat = false;
