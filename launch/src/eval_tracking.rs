@@ -165,11 +165,9 @@ pub struct TrackingScore {
     shore_ids: BTreeSet<u32>,
     /// Frames of scored true objects left out because they lay on land.
     aground_frames: u64,
-    /// (truth class, reported class) -> frames in which the object had a track: what the
-    /// sequencer was told each true object was.
-    reported_class: BTreeMap<(u8, u8), u64>,
-    /// The same by truth id, (truth class, reported class) -> frames: which object the wrong
-    /// classes are on (a moored boat against a bank, a far boat seen smeared).
+    /// By truth id, (truth class, reported class) -> frames in which the object had a track: what
+    /// the sequencer was told each true object was, and which object the wrong classes are on (a
+    /// moored boat against a bank, a far boat seen smeared).
     reported_class_by_object: BTreeMap<u32, BTreeMap<(u8, u8), u64>>,
     speed_errors_pct: Vec<f64>,
     /// The same over the frames in which the track had a detection (not coasting).
@@ -316,7 +314,6 @@ impl TrackingScore {
             }
             if let Some(id) = os.track_id {
                 self.matched_ids.insert(id);
-                *self.reported_class.entry((o.class, os.class)).or_default() += 1;
                 *self
                     .reported_class_by_object
                     .entry(o.id)
@@ -460,9 +457,13 @@ impl TrackingScore {
     /// Per true class, the frames it had a track, how many reported the class it should be, and
     /// the count of each class reported.
     fn reported_classes(&self) -> Vec<serde_json::Value> {
+        let mut reported: BTreeMap<(u8, u8), u64> = BTreeMap::new();
+        for (&key, &n) in self.reported_class_by_object.values().flatten() {
+            *reported.entry(key).or_default() += n;
+        }
         SCORED
             .iter()
-            .filter_map(|&truth| class_tally(&self.reported_class, truth))
+            .filter_map(|&truth| class_tally(&reported, truth))
             .collect()
     }
 
